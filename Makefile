@@ -1,0 +1,54 @@
+# kflex — the two commands of the README, and their parts.
+#   make run   set up, build (release) and run `kflex-cli run` on the shipped defaults
+#   make test  set up, then every test (Rust workspace, Python)
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+
+PYTHON ?= python3
+VENV := .venv
+VPY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+CARGO ?= cargo
+RUN_ARGS ?=
+
+.PHONY: run test venv build test-rust test-python lint fmt bench fit clean
+
+run: venv build
+	./target/release/kflex-cli run $(RUN_ARGS)
+
+test: venv test-rust test-python
+
+venv: $(STAMP)
+
+$(STAMP): requirements.txt
+	@command -v $(CARGO) >/dev/null || { echo "cargo not found: install Rust from https://rustup.rs"; exit 1; }
+	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 10))' || { echo "$(PYTHON) must be Python >= 3.10"; exit 1; }
+	$(PYTHON) -m venv $(VENV) || { echo "python venv failed: on Debian/Ubuntu, apt-get install python3-venv"; exit 1; }
+	$(VPY) -m pip install --quiet --upgrade pip
+	$(VPY) -m pip install --quiet -r requirements.txt
+	touch $(STAMP)
+
+build:
+	$(CARGO) build --release --locked -p kflex-cli
+
+test-rust:
+	$(CARGO) test --workspace --locked
+
+test-python: venv
+	$(VPY) -m pytest -q tests/python
+
+lint:
+	$(CARGO) fmt --all --check
+	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
+
+fmt:
+	$(CARGO) fmt --all
+
+bench:
+	$(CARGO) bench -p kflex-model --bench plant
+
+fit:
+	$(CARGO) run --release --locked -p kflex-control --example fit_calibration
+
+clean:
+	rm -rf target $(VENV)
