@@ -1,0 +1,255 @@
+//! Tendon kinematics of the continuum bending joint: the paper's Eq. 1–2.
+//!
+//! ```text
+//! ΔL_a(θ) = 2n { R − d_t sin(θ/2n) − (R − B) cos(θ/2n) − B }      (Eq. 1)
+//! ΔL_b(θ) = ΔL_a(−θ)                                              (Eq. 2)
+//! ```
+//! with `n` segments (each has two rolling contacts, hence `2n` equal
+//! contact angles `φ = θ/2n`), `R` the radius of the rolling contact surface,
+//! `B` the offset of the tendon's exit point from that surface, and `d_t`
+//! the tendon's lateral offset from the joint axis. The paper writes the
+//! tendon offset `d`; here it is [`TendonGeometry::tendon_offset_mm`] so it
+//! is not confused with the instrument's translation `d`.
+//!
+//! Sign convention: positive θ bends the joint toward tendon `a`, which then
+//! shortens (ΔL_a < 0); a motor *pulls* tendon `a` by `−ΔL_a`.
+//! Angles are radians in this module (the plant's API speaks degrees).
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{ModelError, Result, closed_range, open_range};
+
+/// Geometry of the tendon-driven continuum joint (Eq. 1). Lengths in mm.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TendonGeometry {
+    /// Number of segments `n` of the continuum joint (the paper's K-FLEX joint has 2).
+    pub n_segments: u32,
+    /// `R`: radius of the rolling contact surfaces, mm.
+    pub r_mm: f64,
+    /// `B`: offset of the tendon exit point from the rolling surface, mm (`0 ≤ B < R`).
+    pub b_mm: f64,
+    /// `d_t` (the paper's `d`): lateral distance of each tendon from the joint axis, mm.
+    pub tendon_offset_mm: f64,
+}
+
+impl Default for TendonGeometry {
+    /// K-FLEX-scale defaults for an instrument about 4 mm across.
+    fn default() -> Self {
+        Self {
+            n_segments: 2,
+            r_mm: 3.0,
+            b_mm: 1.2,
+            tendon_offset_mm: 1.6,
+        }
+    }
+}
+
+impl TendonGeometry {
+    /// Checks the parameters and that Eq. 1 is strictly monotone over
+    /// `[-max_theta, max_theta]` (radians), which the inverse needs:
+    /// `dΔL_a/dθ = (R−B) sin φ − d_t cos φ < 0 ⇔ tan φ < d_t/(R−B)`.
+    pub fn validate(&self, max_theta_rad: f64) -> Result<()> {
+        closed_range("n_segments", f64::from(self.n_segments), 1.0, 16.0)?;
+        open_range("r_mm", self.r_mm, 0.0, 100.0)?;
+        closed_range("b_mm", self.b_mm, 0.0, self.r_mm)?;
+        open_range("tendon_offset_mm", self.tendon_offset_mm, 0.0, 100.0)?;
+        let phi_max = max_theta_rad / self.two_n();
+        let limit = (self.tendon_offset_mm / (self.r_mm - self.b_mm)).atan();
+        if phi_max >= limit || phi_max >= std::f64::consts::FRAC_PI_2 {
+            let theta_limit_deg = (2.0 * self.two_n() * limit).to_degrees() / 2.0;
+            return Err(ModelError::InvalidParameter {
+                name: "joint range (Eq. 1 not monotone over it)",
+                value: max_theta_rad.to_degrees(),
+                range: format!("(0, {theta_limit_deg:.1}) deg for this geometry"),
+            });
+        }
+        Ok(())
+    }
+
+    fn two_n(&self) -> f64 {
+        2.0 * f64::from(self.n_segments)
+    }
+
+    /// Eq. 1: change of the length of tendon `a`'s path through the joint, mm, at bend `theta` (rad).
+    pub fn delta_l_a(&self, theta: f64) -> f64 {
+        let phi = theta / self.two_n();
+        self.two_n()
+            * (self.r_mm
+                - self.tendon_offset_mm * phi.sin()
+                - (self.r_mm - self.b_mm) * phi.cos()
+                - self.b_mm)
+    }
+
+    /// Eq. 2: `ΔL_b(θ) = ΔL_a(−θ)`, mm.
+    pub fn delta_l_b(&self, theta: f64) -> f64 {
+        self.delta_l_a(-theta)
+    }
+
+    /// `dΔL_a/dθ`, mm/rad.
+    pub fn delta_l_a_slope(&self, theta: f64) -> f64 {
+        let phi = theta / self.two_n();
+        (self.r_mm - self.b_mm) * phi.sin() - self.tendon_offset_mm * phi.cos()
+    }
+
+    /// Differential stroke `s(θ) = (ΔL_b − ΔL_a)/2 = 2n d_t sin(θ/2n)`, mm: how far
+    /// tendon `a` is pulled in, and `b` paid out, relative to their mean.
+    pub fn differential_stroke(&self, theta: f64) -> f64 {
+        self.two_n() * self.tendon_offset_mm * (theta / self.two_n()).sin()
+    }
+
+    /// `ds/dθ = d_t cos(θ/2n)`, mm/rad: the moment arm of the differential tendon force.
+    pub fn stroke_slope(&self, theta: f64) -> f64 {
+        self.tendon_offset_mm * (theta / self.two_n()).cos()
+    }
+
+    /// Common-mode change `(ΔL_a + ΔL_b)/2 = 2n (R−B)(1 − cos(θ/2n))`, mm: both
+    /// tendon paths lengthen as the joint bends (the motors pay tendon out).
+    pub fn common_mode(&self, theta: f64) -> f64 {
+        self.two_n() * (self.r_mm - self.b_mm) * (1.0 - (theta / self.two_n()).cos())
+    }
+
+    /// Inverse of Eq. 1: the bend θ (rad, within `[-max_theta, max_theta]`) at which
+    /// tendon `a`'s path changes by `delta_l_a_mm`.
+    ///
+    /// Eq. 1 is strictly decreasing over a validated range, so a safeguarded
+    /// Newton iteration on the bracket converges for every reachable value
+    /// (bisection whenever a Newton step leaves the bracket or stalls).
+    pub fn theta_from_delta_l_a(&self, delta_l_a_mm: f64, max_theta: f64) -> Result<f64> {
+        crate::error::finite("delta_l_a_mm", delta_l_a_mm)?;
+        let (mut lo, mut hi) = (-max_theta, max_theta);
+        // decreasing: f(lo) is the largest value, f(hi) the smallest
+        let (f_lo, f_hi) = (self.delta_l_a(lo), self.delta_l_a(hi));
+        if delta_l_a_mm > f_lo || delta_l_a_mm < f_hi {
+            return Err(ModelError::Unreachable {
+                delta_l_mm: delta_l_a_mm,
+                min_mm: f_hi,
+                max_mm: f_lo,
+            });
+        }
+        let mut theta = -delta_l_a_mm / self.tendon_offset_mm; // small-angle guess
+        if !(lo..=hi).contains(&theta) {
+            theta = 0.5 * (lo + hi);
+        }
+        for _ in 0..100 {
+            let g = self.delta_l_a(theta) - delta_l_a_mm;
+            if g.abs() < 1e-13 {
+                break;
+            }
+            // g is decreasing in theta
+            if g > 0.0 {
+                lo = theta;
+            } else {
+                hi = theta;
+            }
+            let slope = self.delta_l_a_slope(theta);
+            let newton = theta - g / slope;
+            theta = if slope < 0.0 && newton > lo && newton < hi {
+                newton
+            } else {
+                0.5 * (lo + hi)
+            };
+            if hi - lo < 1e-15 {
+                break;
+            }
+        }
+        Ok(theta)
+    }
+
+    /// Inverse of the differential stroke: θ (rad) from `s` (mm), closed form.
+    pub fn theta_from_stroke(&self, stroke_mm: f64) -> Option<f64> {
+        let x = stroke_mm / (self.two_n() * self.tendon_offset_mm);
+        (x.abs() <= 1.0).then(|| self.two_n() * x.asin())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    const MAX: f64 = 120.0 * std::f64::consts::PI / 180.0;
+
+    #[test]
+    fn zero_bend_changes_nothing() {
+        let g = TendonGeometry::default();
+        assert_eq!(g.delta_l_a(0.0), 0.0);
+        assert_eq!(g.differential_stroke(0.0), 0.0);
+        assert!(g.validate(MAX).is_ok());
+    }
+
+    #[test]
+    fn small_angle_slope_is_minus_the_offset() {
+        let g = TendonGeometry::default();
+        let h = 1e-6;
+        let slope = (g.delta_l_a(h) - g.delta_l_a(-h)) / (2.0 * h);
+        assert!((slope + g.tendon_offset_mm).abs() < 1e-6, "{slope}");
+    }
+
+    #[test]
+    fn rejects_non_monotone_range_and_bad_geometry() {
+        let g = TendonGeometry {
+            r_mm: 5.0,
+            b_mm: 0.0,
+            tendon_offset_mm: 0.5,
+            n_segments: 1,
+        };
+        assert!(g.validate(MAX).is_err());
+        let g = TendonGeometry {
+            n_segments: 0,
+            ..Default::default()
+        };
+        assert!(matches!(
+            g.validate(MAX),
+            Err(ModelError::InvalidParameter {
+                name: "n_segments",
+                ..
+            })
+        ));
+        let g = TendonGeometry {
+            b_mm: 4.0,
+            ..Default::default()
+        };
+        assert!(g.validate(MAX).is_err());
+    }
+
+    #[test]
+    fn unreachable_length_is_an_error() {
+        let g = TendonGeometry::default();
+        assert!(matches!(
+            g.theta_from_delta_l_a(100.0, MAX),
+            Err(ModelError::Unreachable { .. })
+        ));
+        assert!(g.theta_from_delta_l_a(f64::NAN, MAX).is_err());
+    }
+
+    proptest! {
+        #[test]
+        fn inverse_of_forward_is_identity(theta in -MAX..MAX) {
+            let g = TendonGeometry::default();
+            let back = g.theta_from_delta_l_a(g.delta_l_a(theta), MAX).unwrap();
+            prop_assert!((back - theta).abs() < 1e-9, "{theta} -> {back}");
+            let back = g.theta_from_stroke(g.differential_stroke(theta)).unwrap();
+            prop_assert!((back - theta).abs() < 1e-9);
+        }
+
+        #[test]
+        fn forward_is_strictly_decreasing(a in -MAX..MAX, b in -MAX..MAX) {
+            let g = TendonGeometry::default();
+            prop_assume!((a - b).abs() > 1e-9);
+            let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+            prop_assert!(g.delta_l_a(lo) > g.delta_l_a(hi));
+        }
+
+        #[test]
+        fn antagonist_is_the_mirror(theta in -MAX..MAX) {
+            let g = TendonGeometry::default();
+            prop_assert!((g.delta_l_b(theta) - g.delta_l_a(-theta)).abs() < 1e-15);
+            // the sum is the common mode, the half-difference is the stroke
+            let sum = 0.5 * (g.delta_l_a(theta) + g.delta_l_b(theta));
+            prop_assert!((sum - g.common_mode(theta)).abs() < 1e-12);
+            let diff = 0.5 * (g.delta_l_b(theta) - g.delta_l_a(theta));
+            prop_assert!((diff - g.differential_stroke(theta)).abs() < 1e-12);
+        }
+    }
+}
