@@ -1,0 +1,23 @@
+//! Default parameters fitted to the paper's uncompensated measurements.
+//!
+//! Produced by `make fit` (`cargo run --release -p kflex-control --example
+//! fit_calibration`), which minimises the squared relative error to Table IX's
+//! "none" row within plausible boxes; the residuals are in the crate docs
+//! (`CALIBRATION.md`).
+
+use crate::transmission::SheathParams;
+
+/// Fitted tendon-sheath parameters (all of them free in the fit).
+pub const FITTED_SHEATH: SheathParams = SheathParams {
+    friction_coefficient: 0.1764,
+    route_wrap_deg: 5.145,
+    pretension_n: 9.883,
+    tendon_stiffness_n_per_mm: 31.95,
+    coulomb_friction_n: 0.0109,
+    presliding_mm: 0.300,
+    drive_backlash_mm: 0.1622,
+};
+
+/// Fitted bending stiffness of one rolling contact, N·mm/rad. The pretension's
+/// straightening moment, `2T₀(R − B) ≈ 35.6` N·mm/rad per contact, adds to it.
+pub const FITTED_CONTACT_STIFFNESS: f64 = 14.64;

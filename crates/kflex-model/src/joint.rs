@@ -1,0 +1,286 @@
+//! Mechanics of the continuum bending joint: the shape of the link chain, the
+//! loads on it, and the quasi-static analytic solver.
+//!
+//! The joint is `2n` rolling links (two per segment, as Eq. 1's `2n` contact
+//! angles), each bending by `φ_j` about the instrument's `+y` axis, so positive
+//! θ bends the tip toward `+x`; the instrument axis is `+z`. The tendon pair
+//! loads every contact with the generalised force of virtual work on Eq. 1:
+//! ```text
+//! τ_j = F d_t cos φ_j − (T_a + T_b)(R − B) sin φ_j        (N·mm)
+//! ```
+//! (`F = T_a − T_b`; the second term is the pretension's straightening moment).
+//! Each contact has an elastic restoring moment `k_φ φ_j` (the backbone), and
+//! gravity and a tip force act on the links and the tool. The analytic solver
+//! assumes equal contact angles `φ_j = θ/2n` and solves the balance of
+//! generalised forces along θ; the rapier model ([`crate::joint_rapier`])
+//! lets every contact find its own angle.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Result, closed_range, open_range};
+use crate::kinematics::TendonGeometry;
+use crate::transmission::TendonSheath;
+
+/// Which joint model the plant uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JointModelKind {
+    /// Quasi-static closed-form balance with equal contact angles (fast).
+    #[default]
+    Analytic,
+    /// A rapier3d multibody chain, integrated to rest every tick.
+    Rapier,
+}
+
+/// Mechanical parameters of the bending joint and the distal tool. SI-ish units as named.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct JointParams {
+    /// Bending stiffness `k_φ` of one rolling contact, N·mm/rad.
+    pub contact_stiffness_nmm_per_rad: f64,
+    /// Length of one link (half a segment), mm.
+    pub link_length_mm: f64,
+    /// Outer radius of the links, mm.
+    pub link_radius_mm: f64,
+    /// Mass of one link, g.
+    pub link_mass_g: f64,
+    /// Length of the distal tool (gripper) beyond the last link, mm.
+    pub tool_length_mm: f64,
+    /// Mass of the tool, g.
+    pub tool_mass_g: f64,
+    /// Gravity in the instrument frame (`z` along the instrument, bending toward `+x`), m/s².
+    pub gravity_m_s2: [f64; 3],
+    /// External force on the tool tip (tool–tissue contact), instrument frame, N.
+    pub tip_load_n: [f64; 3],
+    /// Mechanical range of the bend: hard stops at ±this, deg.
+    pub max_theta_deg: f64,
+}
+
+impl Default for JointParams {
+    fn default() -> Self {
+        Self {
+            contact_stiffness_nmm_per_rad: crate::calibration::FITTED_CONTACT_STIFFNESS,
+            link_length_mm: 4.0,
+            link_radius_mm: 2.0,
+            link_mass_g: 0.2,
+            tool_length_mm: 8.0,
+            tool_mass_g: 0.8,
+            gravity_m_s2: [-9.81, 0.0, 0.0],
+            tip_load_n: [0.0; 3],
+            max_theta_deg: 120.0,
+        }
+    }
+}
+
+impl JointParams {
+    /// Checks the parameters against their physical ranges.
+    pub fn validate(&self) -> Result<()> {
+        open_range(
+            "contact_stiffness_nmm_per_rad",
+            self.contact_stiffness_nmm_per_rad,
+            0.0,
+            1e6,
+        )?;
+        open_range("link_length_mm", self.link_length_mm, 0.0, 1e3)?;
+        open_range("link_radius_mm", self.link_radius_mm, 0.0, 1e3)?;
+        open_range("link_mass_g", self.link_mass_g, 0.0, 1e4)?;
+        closed_range("tool_length_mm", self.tool_length_mm, 0.0, 1e3)?;
+        closed_range("tool_mass_g", self.tool_mass_g, 0.0, 1e4)?;
+        for (name, v) in [
+            ("gravity_m_s2.x", self.gravity_m_s2[0]),
+            ("gravity_m_s2.y", self.gravity_m_s2[1]),
+            ("gravity_m_s2.z", self.gravity_m_s2[2]),
+        ] {
+            closed_range(name, v, -100.0, 100.0)?;
+        }
+        for (name, v) in [
+            ("tip_load_n.x", self.tip_load_n[0]),
+            ("tip_load_n.y", self.tip_load_n[1]),
+            ("tip_load_n.z", self.tip_load_n[2]),
+        ] {
+            closed_range(name, v, -100.0, 100.0)?;
+        }
+        closed_range("max_theta_deg", self.max_theta_deg, 90.0, 170.0)?;
+        Ok(())
+    }
+}
+
+/// Position of a point of the chain in the bending plane: (x, z) in mm.
+pub type PlanePoint = [f64; 2];
+
+/// Upper bound on `2n` supported without allocation.
+pub const MAX_CONTACTS: usize = 32;
+
+/// Generalised force of gravity and tip load along θ (N·mm/rad), with all
+/// `2n` contacts at `φ = θ/2n`: `(1/2n) Σ_j τ_j`, `τ_j` the moment about contact `j`.
+pub fn external_generalised_force(joint: &JointParams, two_n: usize, theta: f64) -> f64 {
+    let two_n = two_n.min(MAX_CONTACTS);
+    let phi = theta / two_n as f64;
+    let l = joint.link_length_mm;
+    let g = joint.gravity_m_s2;
+    let (gx, gz) = (g[0], g[2]);
+    let link_w = joint.link_mass_g * 1e-3; // kg → N per (m/s²)
+    let tool_w = joint.tool_mass_g * 1e-3;
+    let mut bases = [[0.0f64; 2]; MAX_CONTACTS];
+    let mut coms = [[0.0f64; 2]; MAX_CONTACTS];
+    let mut p = [0.0f64, 0.0];
+    let mut heading = 0.0;
+    for j in 0..two_n {
+        heading += phi;
+        let (s, c) = heading.sin_cos();
+        bases[j] = p;
+        coms[j] = [p[0] + 0.5 * l * s, p[1] + 0.5 * l * c];
+        p = [p[0] + l * s, p[1] + l * c];
+    }
+    let (s, c) = heading.sin_cos();
+    let tool_com = [
+        p[0] + 0.5 * joint.tool_length_mm * s,
+        p[1] + 0.5 * joint.tool_length_mm * c,
+    ];
+    let tip = [
+        p[0] + joint.tool_length_mm * s,
+        p[1] + joint.tool_length_mm * c,
+    ];
+    // moment about +y of force (fx, fz) at r relative to base b: Δz fx − Δx fz
+    let moment =
+        |b: PlanePoint, r: PlanePoint, fx: f64, fz: f64| (r[1] - b[1]) * fx - (r[0] - b[0]) * fz;
+    let mut total = 0.0;
+    for j in 0..two_n {
+        let b = bases[j];
+        for com in &coms[j..two_n] {
+            total += moment(b, *com, link_w * gx, link_w * gz);
+        }
+        total += moment(b, tool_com, tool_w * gx, tool_w * gz);
+        total += moment(b, tip, joint.tip_load_n[0], joint.tip_load_n[2]);
+    }
+    total / two_n as f64
+}
+
+/// Residual of the generalised-force balance along θ (N·mm/rad), equal contact angles.
+fn balance(
+    geometry: &TendonGeometry,
+    joint: &JointParams,
+    sheath: &TendonSheath,
+    theta: f64,
+) -> (f64, f64) {
+    let two_n = 2.0 * f64::from(geometry.n_segments);
+    let phi = theta / two_n;
+    let (s, c) = phi.sin_cos();
+    let p = geometry.differential_stroke(theta);
+    let arm = geometry.tendon_offset_mm * c;
+    let distal = sheath.distal(p);
+    let (f, t_sum) = (distal.force_n, distal.tension_sum_n);
+    let rb = geometry.r_mm - geometry.b_mm;
+    let k = joint.contact_stiffness_nmm_per_rad;
+    let residual = f * arm - t_sum * rb * s - k * phi
+        + external_generalised_force(joint, two_n as usize, theta);
+    // slope, neglecting the slow variation of the external loads
+    let slope = distal.slope_n_per_mm * arm * arm
+        - f * geometry.tendon_offset_mm * s / two_n
+        - t_sum * rb * c / two_n
+        - k / two_n;
+    (residual, slope)
+}
+
+/// Quasi-static analytic solve: the bend θ (rad) at which the tendons, the
+/// backbone and the external loads balance, clamped to the hard stops.
+/// Starts from `theta_guess` (the last tick's angle): Newton with a bisection
+/// fallback over the whole mechanical range.
+pub fn solve_analytic(
+    geometry: &TendonGeometry,
+    joint: &JointParams,
+    sheath: &TendonSheath,
+    theta_guess: f64,
+) -> f64 {
+    let max = joint.max_theta_deg.to_radians();
+    let mut theta = theta_guess.clamp(-max, max);
+    for _ in 0..12 {
+        let (r, slope) = balance(geometry, joint, sheath, theta);
+        if slope.is_nan() || slope >= 0.0 || !r.is_finite() {
+            break;
+        }
+        let next = (theta - r / slope).clamp(-max, max);
+        if (next - theta).abs() < 1e-13 {
+            return next;
+        }
+        theta = next;
+    }
+    // Fallback: bisection on the full range (the balance decreases with θ).
+    let (r_hi, _) = balance(geometry, joint, sheath, max);
+    if r_hi >= 0.0 {
+        return max;
+    }
+    let (r_lo, _) = balance(geometry, joint, sheath, -max);
+    if r_lo <= 0.0 {
+        return -max;
+    }
+    let (mut lo, mut hi) = (-max, max);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if balance(geometry, joint, sheath, mid).0 > 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if hi - lo < 1e-14 {
+            break;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::transmission::SheathParams;
+
+    #[test]
+    fn balance_holds_at_the_solution() {
+        let geometry = TendonGeometry::default();
+        let joint = JointParams::default();
+        let mut sheath = TendonSheath::new(SheathParams::default(), 90.0).unwrap();
+        sheath.advance(geometry.differential_stroke(0.6)).unwrap();
+        let theta = solve_analytic(&geometry, &joint, &sheath, 0.0);
+        assert!(theta > 0.0 && theta < 0.6, "{theta}");
+        assert!(balance(&geometry, &joint, &sheath, theta).0.abs() < 1e-9);
+        // the same answer from a far-away start
+        let again = solve_analytic(&geometry, &joint, &sheath, -1.5);
+        assert!((again - theta).abs() < 1e-10);
+    }
+
+    #[test]
+    fn gravity_opposing_the_bend_lowers_it() {
+        let geometry = TendonGeometry::default();
+        let mut sheath = TendonSheath::new(SheathParams::default(), 0.0).unwrap();
+        sheath.advance(geometry.differential_stroke(0.6)).unwrap();
+        let none = JointParams {
+            gravity_m_s2: [0.0; 3],
+            ..JointParams::default()
+        };
+        let heavy = JointParams {
+            gravity_m_s2: [-9.81, 0.0, 0.0],
+            tool_mass_g: 50.0,
+            ..none
+        };
+        let t0 = solve_analytic(&geometry, &none, &sheath, 0.0);
+        let t1 = solve_analytic(&geometry, &heavy, &sheath, 0.0);
+        assert!(t1 < t0 - 1e-3, "{t0} vs {t1}");
+    }
+
+    #[test]
+    fn tip_pushed_back_drives_the_joint_into_its_stop() {
+        // A bent joint pressed backwards (−z) at the tip bends further, here past
+        // the stop: the solver returns the stop, not an angle beyond it.
+        let geometry = TendonGeometry::default();
+        let joint = JointParams {
+            tip_load_n: [0.0, 0.0, -60.0],
+            ..JointParams::default()
+        };
+        let mut sheath = TendonSheath::new(SheathParams::default(), 0.0).unwrap();
+        sheath
+            .advance(geometry.differential_stroke(80f64.to_radians()))
+            .unwrap();
+        let theta = solve_analytic(&geometry, &joint, &sheath, 60f64.to_radians());
+        assert_eq!(theta, joint.max_theta_deg.to_radians());
+    }
+}

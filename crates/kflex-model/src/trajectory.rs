@@ -1,0 +1,432 @@
+//! Master-side command trajectories θ_d(t), all deterministic from a seed.
+//!
+//! Every trajectory gives the angle and its rate analytically, so the
+//! velocity the paper's KBJAE takes as input is exact, not differenced.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{ModelError, Result, closed_range, open_range};
+
+/// A commanded bending angle and its rate.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Sample {
+    /// θ_d, deg.
+    pub theta_deg: f64,
+    /// dθ_d/dt, deg/s.
+    pub rate_deg_s: f64,
+}
+
+/// One sinusoid `offset + amplitude · sin(2π f t + phase)`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Sine {
+    /// Amplitude, deg.
+    pub amplitude_deg: f64,
+    /// Offset, deg.
+    pub offset_deg: f64,
+    /// Frequency, Hz.
+    pub frequency_hz: f64,
+    /// Phase, rad.
+    pub phase_rad: f64,
+}
+
+impl Sine {
+    /// The paper's test input: `θ_d(t) = 25 sin(t) + 25` deg at 0.159 Hz (≈ 1 rad/s).
+    pub const PAPER: Sine = Sine {
+        amplitude_deg: 25.0,
+        offset_deg: 25.0,
+        frequency_hz: 0.159,
+        phase_rad: 0.0,
+    };
+
+    /// Period, s.
+    pub fn period_s(&self) -> f64 {
+        1.0 / self.frequency_hz
+    }
+
+    fn sample(&self, t: f64) -> Sample {
+        let w = std::f64::consts::TAU * self.frequency_hz;
+        let (s, c) = (w * t + self.phase_rad).sin_cos();
+        Sample {
+            theta_deg: self.offset_deg + self.amplitude_deg * s,
+            rate_deg_s: self.amplitude_deg * w * c,
+        }
+    }
+}
+
+/// A trajectory, as data (serde-tagged by `kind`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Trajectory {
+    /// One sinusoid (the paper's test input is [`Sine::PAPER`]).
+    Sine(Sine),
+    /// A sequence of raised-cosine cycles `θ = (A/2)(1 − cos 2πft)` from 0 to the
+    /// peak `A` and back, several cycles per (amplitude, frequency) pair, one
+    /// pair after the other: the shape of the paper's kinematic data set
+    /// (Table III, "periodic signals of different amplitudes").
+    PeriodicSet {
+        /// (peak amplitude deg, frequency Hz) pairs, in order.
+        legs: Vec<(f64, f64)>,
+        /// Cycles of each pair.
+        cycles_per_leg: u32,
+    },
+    /// Band-limited random, master-like motion within `[min_deg, max_deg]`:
+    /// a sum of `components` sinusoids with random frequencies up to
+    /// `cutoff_hz`, phases and 1/f amplitudes, scaled so it can never leave the range.
+    BandLimited {
+        /// Lower bound, deg.
+        min_deg: f64,
+        /// Upper bound, deg.
+        max_deg: f64,
+        /// Highest frequency, Hz.
+        cutoff_hz: f64,
+        /// Number of sinusoids.
+        components: u32,
+        /// Seed.
+        seed: u64,
+    },
+    /// Steps between random levels in `[min_deg, max_deg]`, held `hold_s` each, smoothed over `ramp_s`.
+    Steps {
+        /// Lower bound, deg.
+        min_deg: f64,
+        /// Upper bound, deg.
+        max_deg: f64,
+        /// Time at each level, s.
+        hold_s: f64,
+        /// Raised-cosine ramp between levels, s (0 for ideal steps).
+        ramp_s: f64,
+        /// Seed.
+        seed: u64,
+    },
+}
+
+/// A trajectory ready to sample: validated, with its random draws made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrajectorySampler {
+    kind: SamplerKind,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum SamplerKind {
+    Sine(Sine),
+    PeriodicSet {
+        legs: Vec<(f64, f64, f64)>,
+        cycles: f64,
+    }, // (amp, freq, start time)
+    Sum {
+        offset: f64,
+        parts: Vec<Sine>,
+    },
+    Steps {
+        levels: Vec<f64>,
+        hold: f64,
+        ramp: f64,
+    },
+}
+
+const STEP_LEVELS: usize = 4096;
+
+impl Trajectory {
+    /// The paper's test input.
+    pub fn paper() -> Self {
+        Trajectory::Sine(Sine::PAPER)
+    }
+
+    /// Validates and prepares for sampling.
+    pub fn sampler(&self) -> Result<TrajectorySampler> {
+        let kind = match self {
+            Trajectory::Sine(s) => {
+                closed_range("amplitude_deg", s.amplitude_deg, 0.0, 360.0)?;
+                closed_range("offset_deg", s.offset_deg, -360.0, 360.0)?;
+                open_range("frequency_hz", s.frequency_hz, 0.0, 1e3)?;
+                crate::error::finite("phase_rad", s.phase_rad)?;
+                SamplerKind::Sine(*s)
+            }
+            Trajectory::PeriodicSet {
+                legs,
+                cycles_per_leg,
+            } => {
+                if legs.is_empty() {
+                    return Err(ModelError::InvalidParameter {
+                        name: "legs.len()",
+                        value: 0.0,
+                        range: "[1, inf)".into(),
+                    });
+                }
+                closed_range("cycles_per_leg", f64::from(*cycles_per_leg), 1.0, 1e6)?;
+                let mut t0 = 0.0;
+                let mut out = Vec::with_capacity(legs.len());
+                for &(amp, f) in legs {
+                    closed_range("leg amplitude_deg", amp, 0.0, 360.0)?;
+                    open_range("leg frequency_hz", f, 0.0, 1e3)?;
+                    out.push((amp, f, t0));
+                    t0 += f64::from(*cycles_per_leg) / f;
+                }
+                SamplerKind::PeriodicSet {
+                    legs: out,
+                    cycles: f64::from(*cycles_per_leg),
+                }
+            }
+            Trajectory::BandLimited {
+                min_deg,
+                max_deg,
+                cutoff_hz,
+                components,
+                seed,
+            } => {
+                let (lo, hi) = range(*min_deg, *max_deg)?;
+                open_range("cutoff_hz", *cutoff_hz, 0.0, 1e3)?;
+                closed_range("components", f64::from(*components), 1.0, 1024.0)?;
+                let mut rng = ChaCha8Rng::seed_from_u64(*seed);
+                let mut parts: Vec<Sine> = (0..*components)
+                    .map(|_| {
+                        let f = cutoff_hz * rng.random_range(0.05..=1.0);
+                        Sine {
+                            amplitude_deg: 1.0 / f,
+                            offset_deg: 0.0,
+                            frequency_hz: f,
+                            phase_rad: rng.random_range(0.0..std::f64::consts::TAU),
+                        }
+                    })
+                    .collect();
+                let total: f64 = parts.iter().map(|p| p.amplitude_deg).sum();
+                let scale = 0.5 * (hi - lo) / total;
+                for p in &mut parts {
+                    p.amplitude_deg *= scale;
+                }
+                SamplerKind::Sum {
+                    offset: 0.5 * (lo + hi),
+                    parts,
+                }
+            }
+            Trajectory::Steps {
+                min_deg,
+                max_deg,
+                hold_s,
+                ramp_s,
+                seed,
+            } => {
+                let (lo, hi) = range(*min_deg, *max_deg)?;
+                open_range("hold_s", *hold_s, 0.0, 1e6)?;
+                closed_range("ramp_s", *ramp_s, 0.0, *hold_s)?;
+                let mut rng = ChaCha8Rng::seed_from_u64(*seed);
+                let levels = (0..STEP_LEVELS)
+                    .map(|_| rng.random_range(lo..=hi))
+                    .collect();
+                SamplerKind::Steps {
+                    levels,
+                    hold: *hold_s,
+                    ramp: *ramp_s,
+                }
+            }
+        };
+        Ok(TrajectorySampler { kind })
+    }
+}
+
+fn range(lo: f64, hi: f64) -> Result<(f64, f64)> {
+    closed_range("min_deg", lo, -360.0, 360.0)?;
+    closed_range("max_deg", hi, lo, 360.0)?;
+    Ok((lo, hi))
+}
+
+impl TrajectorySampler {
+    /// θ_d and its rate at time `t` (s). Times before 0 give the value at 0 with zero rate.
+    pub fn sample(&self, t: f64) -> Sample {
+        let t = if t.is_finite() { t.max(0.0) } else { 0.0 };
+        match &self.kind {
+            SamplerKind::Sine(s) => s.sample(t),
+            SamplerKind::PeriodicSet { legs, cycles } => {
+                let idx = legs.iter().rposition(|leg| leg.2 <= t).unwrap_or(0);
+                let (amp, f, t0) = legs[idx];
+                let local = t - t0;
+                if local > cycles / f {
+                    return Sample::default(); // after the last leg: at rest at 0
+                }
+                let w = std::f64::consts::TAU * f;
+                Sample {
+                    theta_deg: 0.5 * amp * (1.0 - (w * local).cos()),
+                    rate_deg_s: 0.5 * amp * w * (w * local).sin(),
+                }
+            }
+            SamplerKind::Sum { offset, parts } => parts.iter().fold(
+                Sample {
+                    theta_deg: *offset,
+                    rate_deg_s: 0.0,
+                },
+                |acc, p| {
+                    let s = p.sample(t);
+                    Sample {
+                        theta_deg: acc.theta_deg + s.theta_deg,
+                        rate_deg_s: acc.rate_deg_s + s.rate_deg_s,
+                    }
+                },
+            ),
+            SamplerKind::Steps { levels, hold, ramp } => {
+                let k = ((t / hold) as usize).min(levels.len() - 1);
+                let into = t - k as f64 * hold;
+                let to = levels[k];
+                let from = if k == 0 { to } else { levels[k - 1] };
+                if *ramp > 0.0 && into < *ramp {
+                    let u = into / ramp;
+                    let w = 0.5 * (1.0 - (std::f64::consts::PI * u).cos());
+                    let dw = 0.5 * std::f64::consts::PI * (std::f64::consts::PI * u).sin() / ramp;
+                    Sample {
+                        theta_deg: from + (to - from) * w,
+                        rate_deg_s: (to - from) * dw,
+                    }
+                } else {
+                    Sample {
+                        theta_deg: to,
+                        rate_deg_s: 0.0,
+                    }
+                }
+            }
+        }
+    }
+
+    /// Length of a natural experiment on this trajectory, s, where it has one
+    /// (the periodic set's total length); `None` for unbounded trajectories.
+    pub fn natural_duration_s(&self) -> Option<f64> {
+        match &self.kind {
+            SamplerKind::PeriodicSet { legs, cycles } => {
+                legs.last().map(|&(_, f, t0)| t0 + cycles / f)
+            }
+            _ => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check_rate(s: &TrajectorySampler, t: f64) {
+        let h = 1e-6;
+        let num = (s.sample(t + h).theta_deg - s.sample(t - h).theta_deg) / (2.0 * h);
+        let ana = s.sample(t).rate_deg_s;
+        assert!(
+            (num - ana).abs() < 1e-3 * (1.0 + ana.abs()),
+            "t={t}: {num} vs {ana}"
+        );
+    }
+
+    #[test]
+    fn paper_input_is_25_sin_t_plus_25() {
+        let s = Trajectory::paper().sampler().unwrap();
+        for t in [0.0, 0.5, 1.7, 10.0] {
+            let expected = 25.0 * (std::f64::consts::TAU * 0.159 * t).sin() + 25.0;
+            assert!((s.sample(t).theta_deg - expected).abs() < 1e-12);
+            // 0.159 Hz is 1 rad/s to within 0.1%
+            assert!((s.sample(t).theta_deg - (25.0 * t.sin() + 25.0)).abs() < 0.1 * (1.0 + t));
+            check_rate(&s, t + 0.1);
+        }
+    }
+
+    #[test]
+    fn band_limited_stays_in_range_and_is_seeded() {
+        let traj = Trajectory::BandLimited {
+            min_deg: 0.0,
+            max_deg: 50.0,
+            cutoff_hz: 0.5,
+            components: 12,
+            seed: 7,
+        };
+        let s = traj.sampler().unwrap();
+        let again = traj.sampler().unwrap();
+        let other = Trajectory::BandLimited {
+            min_deg: 0.0,
+            max_deg: 50.0,
+            cutoff_hz: 0.5,
+            components: 12,
+            seed: 8,
+        }
+        .sampler()
+        .unwrap();
+        let mut lo = f64::MAX;
+        let mut hi = f64::MIN;
+        let mut differs = false;
+        for k in 0..20000 {
+            let t = k as f64 * 0.01;
+            let v = s.sample(t).theta_deg;
+            assert_eq!(v, again.sample(t).theta_deg);
+            differs |= (v - other.sample(t).theta_deg).abs() > 1.0;
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        assert!(lo >= 0.0 && hi <= 50.0, "[{lo}, {hi}]");
+        assert!(hi - lo > 15.0, "should use the range: [{lo}, {hi}]");
+        assert!(differs);
+        check_rate(&s, 3.3);
+    }
+
+    #[test]
+    fn periodic_set_peaks_at_each_amplitude() {
+        let traj = Trajectory::PeriodicSet {
+            legs: vec![(35.0, 0.2), (45.0, 0.1)],
+            cycles_per_leg: 2,
+        };
+        let s = traj.sampler().unwrap();
+        assert_eq!(s.natural_duration_s(), Some(2.0 / 0.2 + 2.0 / 0.1));
+        assert!((s.sample(2.5).theta_deg - 35.0).abs() < 1e-9); // first peak of leg 1
+        assert!((s.sample(10.0 + 5.0).theta_deg - 45.0).abs() < 1e-9); // first peak of leg 2
+        assert!(s.sample(10.0).theta_deg.abs() < 1e-9);
+        check_rate(&s, 1.3);
+    }
+
+    #[test]
+    fn steps_hold_levels_and_ramp() {
+        let traj = Trajectory::Steps {
+            min_deg: 0.0,
+            max_deg: 50.0,
+            hold_s: 2.0,
+            ramp_s: 0.5,
+            seed: 1,
+        };
+        let s = traj.sampler().unwrap();
+        let a = s.sample(1.0).theta_deg;
+        let b = s.sample(3.9).theta_deg;
+        assert_eq!(s.sample(1.9).theta_deg, a);
+        assert!((0.0..=50.0).contains(&a) && (0.0..=50.0).contains(&b));
+        let mid = s.sample(2.25).theta_deg;
+        assert!((mid - 0.5 * (a + b)).abs() < 1e-9);
+        check_rate(&s, 2.2);
+    }
+
+    #[test]
+    fn rejects_bad_specs() {
+        assert!(
+            Trajectory::Sine(Sine {
+                frequency_hz: 0.0,
+                ..Sine::PAPER
+            })
+            .sampler()
+            .is_err()
+        );
+        assert!(
+            Trajectory::PeriodicSet {
+                legs: vec![],
+                cycles_per_leg: 1
+            }
+            .sampler()
+            .is_err()
+        );
+        let bad = Trajectory::BandLimited {
+            min_deg: 10.0,
+            max_deg: 0.0,
+            cutoff_hz: 1.0,
+            components: 3,
+            seed: 0,
+        };
+        assert!(bad.sampler().is_err());
+        let bad = Trajectory::Steps {
+            min_deg: 0.0,
+            max_deg: 1.0,
+            hold_s: 1.0,
+            ramp_s: 2.0,
+            seed: 0,
+        };
+        assert!(bad.sampler().is_err());
+    }
+}

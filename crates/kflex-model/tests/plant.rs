@@ -1,0 +1,438 @@
+//! Behaviour of the whole plant: joint models agree, determinism, bad input.
+
+use kflex_model::{
+    AuroraNoise, Command, JointModelKind, JointParams, ModelError, Plant, PlantConfig,
+    SheathParams, Trajectory,
+};
+use proptest::prelude::*;
+
+fn drive(config: PlantConfig, seconds: f64, dt: f64) -> Vec<f64> {
+    let mut plant = Plant::new(config).unwrap();
+    let traj = Trajectory::paper().sampler().unwrap();
+    let n = (seconds / dt) as usize;
+    (0..n)
+        .map(|k| {
+            let theta = traj
+                .sample(k as f64 * dt)
+                .theta_deg
+                .min(25.0 * (k as f64 * dt)); // gentle start
+            plant
+                .step(
+                    Command {
+                        theta_deg: theta,
+                        translation_mm: 5.0,
+                    },
+                    dt,
+                )
+                .unwrap()
+                .theta_deg
+        })
+        .collect()
+}
+
+#[test]
+fn rapier_and_analytic_joints_agree_without_load() {
+    let joint = JointParams {
+        gravity_m_s2: [0.0; 3],
+        tip_load_n: [0.0; 3],
+        ..JointParams::default()
+    };
+    for sheath_deg in [0.0, 180.0] {
+        let base = PlantConfig {
+            joint,
+            sheath_deg,
+            ..PlantConfig::default()
+        };
+        let analytic = drive(base, 8.0, 0.02);
+        let rapier = drive(
+            PlantConfig {
+                joint_model: JointModelKind::Rapier,
+                ..base
+            },
+            8.0,
+            0.02,
+        );
+        let worst = analytic
+            .iter()
+            .zip(&rapier)
+            .map(|(a, r)| (a - r).abs())
+            .fold(0.0, f64::max);
+        let range = analytic.iter().cloned().fold(f64::MIN, f64::max);
+        assert!(range > 10.0, "the joint should move: max {range}");
+        assert!(
+            worst < 0.1,
+            "sheath {sheath_deg}: joint models differ by {worst} deg"
+        );
+    }
+}
+
+#[test]
+fn rapier_gravity_and_tip_load_bend_the_joint_as_the_analytic_model_does() {
+    // a heavy tool and a push on the tip: both models move the same way, by a similar amount
+    let joint = JointParams {
+        tool_mass_g: 30.0,
+        tip_load_n: [-0.3, 0.0, 0.0],
+        ..JointParams::default()
+    };
+    let unloaded = JointParams {
+        gravity_m_s2: [0.0; 3],
+        tip_load_n: [0.0; 3],
+        ..joint
+    };
+    let settle = |joint: JointParams, model| {
+        let mut plant = Plant::new(PlantConfig {
+            joint,
+            joint_model: model,
+            ..PlantConfig::default()
+        })
+        .unwrap();
+        let mut theta = 0.0;
+        for k in 1..=100 {
+            theta = plant
+                .step(
+                    Command {
+                        theta_deg: 0.3 * f64::from(k),
+                        translation_mm: 0.0,
+                    },
+                    0.02,
+                )
+                .unwrap()
+                .theta_deg;
+        }
+        theta
+    };
+    for model in [JointModelKind::Analytic, JointModelKind::Rapier] {
+        let drop = settle(unloaded, model) - settle(joint, model);
+        assert!(
+            drop > 1.0,
+            "{model:?}: loads should lower the bend, dropped {drop}"
+        );
+    }
+    let a = settle(unloaded, JointModelKind::Analytic) - settle(joint, JointModelKind::Analytic);
+    let r = settle(unloaded, JointModelKind::Rapier) - settle(joint, JointModelKind::Rapier);
+    assert!((a - r).abs() < 0.25 * a, "analytic drop {a} vs rapier {r}");
+}
+
+#[test]
+fn same_seed_same_run_other_seed_other_noise() {
+    let config = PlantConfig {
+        noise: Some(AuroraNoise::default()),
+        seed: 5,
+        ..PlantConfig::default()
+    };
+    let run = |config: PlantConfig| {
+        let mut plant = Plant::new(config).unwrap();
+        (0..200)
+            .map(|k| {
+                plant
+                    .step(
+                        Command {
+                            theta_deg: f64::from(k) * 0.2,
+                            translation_mm: 1.0,
+                        },
+                        0.01,
+                    )
+                    .unwrap()
+            })
+            .collect::<Vec<_>>()
+    };
+    let (a, b, c) = (
+        run(config),
+        run(config),
+        run(PlantConfig { seed: 6, ..config }),
+    );
+    assert_eq!(a, b);
+    assert!(
+        a.iter()
+            .zip(&c)
+            .any(|(x, y)| x.measured_theta_deg != y.measured_theta_deg)
+    );
+    // noise touches the measurement only
+    assert!(a.iter().zip(&c).all(|(x, y)| x.theta_deg == y.theta_deg));
+    // reset gives the same run again
+    let mut plant = Plant::new(config).unwrap();
+    plant
+        .step(
+            Command {
+                theta_deg: 40.0,
+                translation_mm: 1.0,
+            },
+            0.01,
+        )
+        .unwrap();
+    plant.reset();
+    let first = plant
+        .step(
+            Command {
+                theta_deg: 0.0,
+                translation_mm: 1.0,
+            },
+            0.01,
+        )
+        .unwrap();
+    assert_eq!(first, a[0]);
+}
+
+#[test]
+fn hysteresis_grows_with_the_sheath_bend() {
+    // the error at the same command on the way up grows with the bend (the mechanism, not a table)
+    let lag = |sheath_deg| {
+        let d = drive(
+            PlantConfig {
+                sheath_deg,
+                ..PlantConfig::default()
+            },
+            4.0,
+            0.01,
+        );
+        let traj = Trajectory::paper().sampler().unwrap();
+        traj.sample(1.5).theta_deg - d[150]
+    };
+    let lags: Vec<f64> = [0.0, 90.0, 180.0, 270.0].into_iter().map(lag).collect();
+    assert!(lags.windows(2).all(|w| w[1] > w[0]), "{lags:?}");
+}
+
+#[test]
+fn bad_commands_are_typed_errors_and_change_nothing() {
+    let mut plant = Plant::new(PlantConfig::default()).unwrap();
+    plant
+        .step(
+            Command {
+                theta_deg: 20.0,
+                translation_mm: 3.0,
+            },
+            0.01,
+        )
+        .unwrap();
+    let before = *plant.state();
+    let cases = [
+        (
+            Command {
+                theta_deg: f64::NAN,
+                translation_mm: 3.0,
+            },
+            0.01,
+        ),
+        (
+            Command {
+                theta_deg: f64::INFINITY,
+                translation_mm: 3.0,
+            },
+            0.01,
+        ),
+        (
+            Command {
+                theta_deg: 200.0,
+                translation_mm: 3.0,
+            },
+            0.01,
+        ),
+        (
+            Command {
+                theta_deg: 10.0,
+                translation_mm: -1.0,
+            },
+            0.01,
+        ),
+        (
+            Command {
+                theta_deg: 10.0,
+                translation_mm: 3.0,
+            },
+            0.0,
+        ),
+        (
+            Command {
+                theta_deg: 10.0,
+                translation_mm: 3.0,
+            },
+            -0.01,
+        ),
+        (
+            Command {
+                theta_deg: 10.0,
+                translation_mm: 3.0,
+            },
+            f64::NAN,
+        ),
+    ];
+    for (command, dt) in cases {
+        let err = plant.step(command, dt).unwrap_err();
+        assert!(!err.to_string().is_empty());
+        assert_eq!(
+            *plant.state(),
+            before,
+            "{command:?} dt={dt} changed the state"
+        );
+    }
+    let err = plant
+        .step(
+            Command {
+                theta_deg: 200.0,
+                translation_mm: 3.0,
+            },
+            0.01,
+        )
+        .unwrap_err();
+    assert_eq!(
+        err,
+        ModelError::OutOfWorkspace {
+            name: "theta_deg",
+            value: 200.0,
+            min: -120.0,
+            max: 120.0
+        }
+    );
+    assert!(err.to_string().contains("[-120, 120]"), "{err}");
+    // and it carries on normally afterwards
+    assert!(
+        plant
+            .step(
+                Command {
+                    theta_deg: 21.0,
+                    translation_mm: 3.0
+                },
+                0.01
+            )
+            .is_ok()
+    );
+}
+
+#[test]
+fn meaningless_parameters_are_rejected_by_name() {
+    let cases: Vec<(PlantConfig, &str)> = vec![
+        (
+            PlantConfig {
+                sheath: SheathParams {
+                    friction_coefficient: -0.1,
+                    ..SheathParams::default()
+                },
+                ..PlantConfig::default()
+            },
+            "friction_coefficient",
+        ),
+        (
+            PlantConfig {
+                sheath_deg: -90.0,
+                ..PlantConfig::default()
+            },
+            "sheath_deg",
+        ),
+        (
+            PlantConfig {
+                joint: JointParams {
+                    link_mass_g: 0.0,
+                    ..JointParams::default()
+                },
+                ..PlantConfig::default()
+            },
+            "link_mass_g",
+        ),
+        (
+            PlantConfig {
+                joint: JointParams {
+                    contact_stiffness_nmm_per_rad: f64::NAN,
+                    ..JointParams::default()
+                },
+                ..PlantConfig::default()
+            },
+            "contact_stiffness",
+        ),
+        (
+            PlantConfig {
+                geometry: kflex_model::TendonGeometry {
+                    n_segments: 0,
+                    ..Default::default()
+                },
+                ..PlantConfig::default()
+            },
+            "n_segments",
+        ),
+        (
+            PlantConfig {
+                noise: Some(AuroraNoise {
+                    theta_std_deg: -1.0,
+                    translation_std_mm: 0.1,
+                }),
+                ..PlantConfig::default()
+            },
+            "theta_std_deg",
+        ),
+    ];
+    for (config, name) in cases {
+        let err = Plant::new(config).unwrap_err().to_string();
+        assert!(err.contains(name), "expected {name} in: {err}");
+    }
+}
+
+#[test]
+fn translation_follows_within_its_speed_limit() {
+    let mut plant = Plant::new(PlantConfig::default()).unwrap();
+    let s = plant
+        .step(
+            Command {
+                theta_deg: 0.0,
+                translation_mm: 30.0,
+            },
+            0.1,
+        )
+        .unwrap();
+    assert!(
+        (s.translation_mm - 2.0).abs() < 1e-12,
+        "20 mm/s for 0.1 s: {}",
+        s.translation_mm
+    );
+    for _ in 0..20 {
+        plant
+            .step(
+                Command {
+                    theta_deg: 0.0,
+                    translation_mm: 30.0,
+                },
+                0.1,
+            )
+            .unwrap();
+    }
+    assert_eq!(plant.state().translation_mm, 30.0);
+}
+
+#[test]
+fn joint_range_covers_over_and_undershoot() {
+    // commands beyond the paper's 0–50 deg working range are accepted and followed
+    let mut plant = Plant::new(PlantConfig::default()).unwrap();
+    let mut low = 0.0f64;
+    for k in 0..300 {
+        low = plant
+            .step(
+                Command {
+                    theta_deg: -0.3 * f64::from(k),
+                    translation_mm: 0.0,
+                },
+                0.01,
+            )
+            .unwrap()
+            .theta_deg;
+    }
+    assert!(low < -45.0, "{low}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+    #[test]
+    fn state_stays_finite_and_in_range(
+        commands in prop::collection::vec((-120.0f64..120.0, 0.0f64..40.0, 1e-4f64..0.5), 1..80),
+        sheath_deg in 0.0f64..400.0,
+    ) {
+        let mut plant = Plant::new(PlantConfig { sheath_deg, ..PlantConfig::default() }).unwrap();
+        for (theta_deg, translation_mm, dt) in commands {
+            let s = plant.step(Command { theta_deg, translation_mm }, dt).unwrap();
+            for v in [s.theta_deg, s.translation_mm, s.differential_force_n, s.tensions.a_distal_n, s.tensions.b_distal_n,
+                      s.tensions.a_proximal_n, s.tensions.b_proximal_n, s.friction_state] {
+                prop_assert!(v.is_finite());
+            }
+            prop_assert!(s.theta_deg.abs() <= 120.0 + 1e-9);
+            prop_assert!(s.tensions.a_distal_n >= 0.0 && s.tensions.b_distal_n >= 0.0);
+            prop_assert!(s.friction_state.abs() <= 1.0 + 1e-12);
+        }
+    }
+}
