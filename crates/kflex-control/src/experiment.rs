@@ -1,0 +1,280 @@
+//! Open-loop experiments: the paper's test input through the uncompensated
+//! plant, at several sheath configurations, repeated with recorded seeds.
+//!
+//! **Protocol.** The plant starts at rest, straight. The paper's input starts
+//! at θ_d(0) = 25 deg, so a pre-roll first brings the command there with a
+//! raised-cosine ramp of [`OpenLoopScenario::pre_roll_s`] and holds it for as
+//! long again; then the input runs for `periods` periods, sampled every `dt_s`.
+//! Metrics use only those periods and the *measured* angle (Aurora-like noise,
+//! as in the paper's measurements).
+//!
+//! **Repeats.** Each repeat draws a plant from the nominal one with a
+//! parameter spread ([`kflex_model::PlantConfig::perturbed`]) and its own noise
+//! seed; both seeds are recorded. The spread stands in for what changes between
+//! repeated runs on a real robot (temperature, tendon seating, sheath lay).
+
+use kflex_model::{
+    AuroraNoise, Command, JointModelKind, Plant, PlantConfig, Trajectory, TrajectorySampler,
+};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{ControlError, Result};
+use crate::metrics::{self, MeanStd};
+
+/// One open-loop run's settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct OpenLoopScenario {
+    /// The command θ_d(t).
+    pub trajectory: Trajectory,
+    /// Evaluated duration in periods of the trajectory (for the paper's sine: 5).
+    pub periods: f64,
+    /// Period of the trajectory, s, used with `periods` (the paper's: 1/0.159).
+    pub period_s: f64,
+    /// Control tick, s.
+    pub dt_s: f64,
+    /// Ramp from rest to θ_d(0), s (then held as long again before evaluation).
+    pub pre_roll_s: f64,
+    /// Constant translation command during the run, mm.
+    pub translation_mm: f64,
+}
+
+impl Default for OpenLoopScenario {
+    fn default() -> Self {
+        Self {
+            trajectory: Trajectory::paper(),
+            periods: 5.0,
+            period_s: 1.0 / 0.159,
+            dt_s: 0.01,
+            pre_roll_s: 2.0,
+            translation_mm: 10.0,
+        }
+    }
+}
+
+/// A recorded run: one row per evaluated tick.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Trace {
+    /// Time since the start of evaluation, s.
+    pub time_s: Vec<f64>,
+    /// θ_d, deg.
+    pub theta_d_deg: Vec<f64>,
+    /// dθ_d/dt, deg/s.
+    pub theta_d_rate_deg_s: Vec<f64>,
+    /// True θ_a, deg.
+    pub theta_a_deg: Vec<f64>,
+    /// Measured θ_a, deg.
+    pub theta_measured_deg: Vec<f64>,
+}
+
+/// Metrics of one run, deg.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RunMetrics {
+    /// RMSE of measured θ_a against θ_d.
+    pub rmse_deg: f64,
+    /// Loop width ("maximum hysteresis size", see [`crate::metrics`]).
+    pub max_hysteresis_deg: f64,
+    /// max e − min e.
+    pub error_peak_to_peak_deg: f64,
+}
+
+impl Trace {
+    /// Metrics of this trace, on the measured angle.
+    pub fn metrics(&self) -> Result<RunMetrics> {
+        Ok(RunMetrics {
+            rmse_deg: metrics::rmse(&self.theta_d_deg, &self.theta_measured_deg)?,
+            max_hysteresis_deg: metrics::loop_width(
+                &self.theta_d_deg,
+                &self.theta_d_rate_deg_s,
+                &self.theta_measured_deg,
+            )?,
+            error_peak_to_peak_deg: metrics::error_peak_to_peak(
+                &self.theta_d_deg,
+                &self.theta_measured_deg,
+            )?,
+        })
+    }
+}
+
+impl OpenLoopScenario {
+    fn validate(&self) -> Result<TrajectorySampler> {
+        positive("periods", self.periods, 1e4)?;
+        positive("period_s", self.period_s, 1e5)?;
+        positive("dt_s", self.dt_s, 10.0)?;
+        if !(self.pre_roll_s >= 0.0 && self.pre_roll_s < 1e4) {
+            return Err(ControlError::InvalidParameter {
+                name: "pre_roll_s",
+                value: self.pre_roll_s,
+                range: "[0, 1e4)".into(),
+            });
+        }
+        let ticks = self.periods * self.period_s / self.dt_s;
+        if ticks > 5e7 {
+            return Err(ControlError::InvalidParameter {
+                name: "periods * period_s / dt_s",
+                value: ticks,
+                range: "[1, 5e7]".into(),
+            });
+        }
+        Ok(self.trajectory.sampler()?)
+    }
+
+    /// Drives `plant` (from its current state) through the scenario and records the evaluated part.
+    pub fn run(&self, plant: &mut Plant) -> Result<Trace> {
+        let sampler = self.validate()?;
+        let start = sampler.sample(0.0).theta_deg;
+        let command = |theta_deg| Command {
+            theta_deg,
+            translation_mm: self.translation_mm,
+        };
+        // pre-roll: raised cosine from the plant's angle to θ_d(0), then hold
+        let from = plant.state().command.theta_deg;
+        let ramp_ticks = (self.pre_roll_s / self.dt_s).round() as usize;
+        for k in 1..=2 * ramp_ticks {
+            let u = (k as f64 / ramp_ticks as f64).min(1.0);
+            let w = 0.5 * (1.0 - (std::f64::consts::PI * u).cos());
+            plant.step(command(from + (start - from) * w), self.dt_s)?;
+        }
+        let n = (self.periods * self.period_s / self.dt_s).round() as usize;
+        let mut trace = Trace::default();
+        for v in [
+            &mut trace.time_s,
+            &mut trace.theta_d_deg,
+            &mut trace.theta_d_rate_deg_s,
+            &mut trace.theta_a_deg,
+            &mut trace.theta_measured_deg,
+        ] {
+            v.reserve(n);
+        }
+        for k in 0..n {
+            // sample at the end of the tick, when the plant has answered it
+            let t = (k + 1) as f64 * self.dt_s;
+            let s = sampler.sample(t);
+            let state = plant.step(command(s.theta_deg), self.dt_s)?;
+            trace.time_s.push(t);
+            trace.theta_d_deg.push(s.theta_deg);
+            trace.theta_d_rate_deg_s.push(s.rate_deg_s);
+            trace.theta_a_deg.push(state.theta_deg);
+            trace.theta_measured_deg.push(state.measured_theta_deg);
+        }
+        Ok(trace)
+    }
+}
+
+fn positive(name: &'static str, value: f64, max: f64) -> Result<f64> {
+    if value.is_finite() && value > 0.0 && value <= max {
+        Ok(value)
+    } else {
+        Err(ControlError::InvalidParameter {
+            name,
+            value,
+            range: format!("(0, {max}]"),
+        })
+    }
+}
+
+/// The uncompensated-plant grid of `kflex-cli run --estimator none`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct OpenLoopGrid {
+    /// Nominal plant (its `sheath_deg`, `noise` and `seed` are set per run).
+    pub plant: PlantConfig,
+    /// Scenario of every run.
+    pub scenario: OpenLoopScenario,
+    /// Sheath configurations, deg.
+    pub sheaths_deg: Vec<f64>,
+    /// Repeats per configuration.
+    pub repeats: u32,
+    /// Base seed; repeat `r` uses `seed + r` for both spread and noise.
+    pub seed: u64,
+    /// Relative parameter spread between repeats (0 for identical plants).
+    pub spread: f64,
+    /// Measurement noise of every run; `None` for the true angle.
+    pub noise: Option<AuroraNoise>,
+}
+
+impl Default for OpenLoopGrid {
+    fn default() -> Self {
+        Self {
+            plant: PlantConfig::default(),
+            scenario: OpenLoopScenario::default(),
+            sheaths_deg: vec![0.0, 90.0, 180.0, 270.0],
+            repeats: 3,
+            seed: 2020,
+            spread: 0.05,
+            noise: Some(AuroraNoise::default()),
+        }
+    }
+}
+
+/// Mean ± std over the repeats of one configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GridRow {
+    /// Sheath bend, deg.
+    pub sheath_deg: f64,
+    /// Joint model that produced it.
+    pub joint_model: JointModelKind,
+    /// RMSE, deg.
+    pub rmse: MeanStd,
+    /// Loop width, deg.
+    pub max_hysteresis: MeanStd,
+    /// Error peak-to-peak, deg.
+    pub error_peak_to_peak: MeanStd,
+    /// Per-repeat metrics, in seed order.
+    pub runs: Vec<RunMetrics>,
+    /// The seed of each repeat.
+    pub seeds: Vec<u64>,
+}
+
+impl OpenLoopGrid {
+    /// Runs every configuration and repeat. Deterministic in `seed`.
+    pub fn run(&self) -> Result<Vec<GridRow>> {
+        if self.repeats == 0 || self.repeats > 1000 {
+            return Err(ControlError::InvalidParameter {
+                name: "repeats",
+                value: f64::from(self.repeats),
+                range: "[1, 1000]".into(),
+            });
+        }
+        if self.sheaths_deg.is_empty() {
+            return Err(ControlError::NotEnoughData {
+                metric: "grid",
+                needed: "at least one sheath configuration",
+                got: 0,
+            });
+        }
+        self.sheaths_deg
+            .iter()
+            .map(|&sheath_deg| self.run_one(sheath_deg))
+            .collect()
+    }
+
+    fn run_one(&self, sheath_deg: f64) -> Result<GridRow> {
+        let seeds: Vec<u64> = (0..u64::from(self.repeats))
+            .map(|r| self.seed.wrapping_add(r))
+            .collect();
+        let mut runs = Vec::with_capacity(seeds.len());
+        for &seed in &seeds {
+            let mut config = if self.spread > 0.0 {
+                self.plant.perturbed(seed, self.spread)?
+            } else {
+                self.plant
+            };
+            config.sheath_deg = sheath_deg;
+            config.noise = self.noise;
+            config.seed = seed;
+            let mut plant = Plant::new(config)?;
+            runs.push(self.scenario.run(&mut plant)?.metrics()?);
+        }
+        let pick = |f: fn(&RunMetrics) -> f64| MeanStd::of(&runs.iter().map(f).collect::<Vec<_>>());
+        Ok(GridRow {
+            sheath_deg,
+            joint_model: self.plant.joint_model,
+            rmse: pick(|m| m.rmse_deg)?,
+            max_hysteresis: pick(|m| m.max_hysteresis_deg)?,
+            error_peak_to_peak: pick(|m| m.error_peak_to_peak_deg)?,
+            runs,
+            seeds,
+        })
+    }
+}

@@ -1,0 +1,189 @@
+//! Metrics of the paper's experiments, defined once and used everywhere.
+//!
+//! * **RMSE**: `sqrt(mean((θ_a − θ_d)²))` over the evaluated samples.
+//! * **Maximum hysteresis size** (the paper's Tables VIII–IX): the paper calls
+//!   it "the peak-to-peak error between the desired input and the measured
+//!   output", but its own Table IX (RMSE 21.9 deg, maximum hysteresis 18.4 deg
+//!   at 270 deg) rules out `max |θ_a − θ_d|`, which can never be below the
+//!   RMSE. kflex reads it as the **width of the hysteresis loop**: the largest
+//!   gap, at equal command θ_d, between the output on the falling branch
+//!   (θ_d decreasing) and on the rising branch (θ_d increasing). Computed by
+//!   binning the samples by θ_d (bins of [`LOOP_BIN_DEG`]), averaging θ_a in
+//!   each bin separately for rising and falling samples (by the sign of the
+//!   command's rate, which is exact), and taking the largest absolute
+//!   difference over the bins that have both. A pure gain error or a constant
+//!   offset has width 0; a backlash of half-width `b` has width `2b`.
+//! * **Error peak-to-peak**, `max e − min e`, is reported beside it so the
+//!   literal reading can be compared too.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{ControlError, Result};
+
+/// Bin width in θ_d for the loop width, deg.
+pub const LOOP_BIN_DEG: f64 = 1.0;
+
+/// Root-mean-square of `actual − desired`.
+pub fn rmse(desired: &[f64], actual: &[f64]) -> Result<f64> {
+    check_pair("rmse", desired, actual)?;
+    let sum: f64 = desired
+        .iter()
+        .zip(actual)
+        .map(|(d, a)| (a - d) * (a - d))
+        .sum();
+    Ok((sum / desired.len() as f64).sqrt())
+}
+
+/// `max e − min e` with `e = actual − desired`.
+pub fn error_peak_to_peak(desired: &[f64], actual: &[f64]) -> Result<f64> {
+    check_pair("error_peak_to_peak", desired, actual)?;
+    let (lo, hi) = desired
+        .iter()
+        .zip(actual)
+        .map(|(d, a)| a - d)
+        .fold((f64::MAX, f64::MIN), |(lo, hi), e| (lo.min(e), hi.max(e)));
+    Ok(hi - lo)
+}
+
+/// Hysteresis loop width (the "maximum hysteresis size", see the module docs), deg.
+/// `rate` is the command's rate; samples with zero rate belong to neither branch.
+pub fn loop_width(desired: &[f64], rate: &[f64], actual: &[f64]) -> Result<f64> {
+    check_pair("loop_width", desired, actual)?;
+    check_pair("loop_width", desired, rate)?;
+    let (lo, hi) = desired
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(lo, hi), &d| (lo.min(d), hi.max(d)));
+    let bins = (((hi - lo) / LOOP_BIN_DEG).floor() as usize + 1).min(100_000);
+    // (sum, count) for rising and falling in each bin
+    let mut rising = vec![(0.0f64, 0u32); bins];
+    let mut falling = vec![(0.0f64, 0u32); bins];
+    for ((&d, &r), &a) in desired.iter().zip(rate).zip(actual) {
+        let k = (((d - lo) / LOOP_BIN_DEG) as usize).min(bins - 1);
+        let slot = if r > 0.0 {
+            &mut rising[k]
+        } else if r < 0.0 {
+            &mut falling[k]
+        } else {
+            continue;
+        };
+        slot.0 += a;
+        slot.1 += 1;
+    }
+    let widths: Vec<f64> = rising
+        .iter()
+        .zip(&falling)
+        .filter(|(r, f)| r.1 > 0 && f.1 > 0)
+        .map(|(r, f)| (f.0 / f64::from(f.1) - r.0 / f64::from(r.1)).abs())
+        .collect();
+    if widths.is_empty() {
+        return Err(ControlError::NotEnoughData {
+            metric: "loop_width",
+            needed: "rising and falling samples at some common command angle",
+            got: 0,
+        });
+    }
+    Ok(widths.into_iter().fold(0.0, f64::max))
+}
+
+fn check_pair(metric: &'static str, a: &[f64], b: &[f64]) -> Result<()> {
+    if a.is_empty() || a.len() != b.len() {
+        return Err(ControlError::NotEnoughData {
+            metric,
+            needed: "two non-empty series of equal length",
+            got: a.len().min(b.len()),
+        });
+    }
+    if a.iter().chain(b).any(|v| !v.is_finite()) {
+        return Err(ControlError::InvalidParameter {
+            name: metric,
+            value: f64::NAN,
+            range: "finite samples only".into(),
+        });
+    }
+    Ok(())
+}
+
+/// Mean and sample standard deviation (n − 1; 0 for a single value).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MeanStd {
+    /// Mean.
+    pub mean: f64,
+    /// Sample standard deviation.
+    pub std: f64,
+}
+
+impl MeanStd {
+    /// Of a non-empty list.
+    pub fn of(values: &[f64]) -> Result<Self> {
+        if values.is_empty() {
+            return Err(ControlError::NotEnoughData {
+                metric: "mean",
+                needed: "at least one value",
+                got: 0,
+            });
+        }
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let std = if values.len() > 1 {
+            (values.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0)).sqrt()
+        } else {
+            0.0
+        };
+        Ok(Self { mean, std })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kflex_model::Play;
+
+    fn sine(n: usize) -> (Vec<f64>, Vec<f64>) {
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 0.01).collect();
+        (
+            t.iter().map(|t| 25.0 * t.sin() + 25.0).collect(),
+            t.iter().map(|t| 25.0 * t.cos()).collect(),
+        )
+    }
+
+    #[test]
+    fn backlash_loop_is_twice_the_half_width() {
+        let (d, r) = sine(3000);
+        let mut play = Play::new(4.0, 25.0).unwrap();
+        let a: Vec<f64> = d.iter().map(|&x| play.advance(x).unwrap()).collect();
+        let w = loop_width(&d, &r, &a).unwrap();
+        assert!((w - 8.0).abs() < 0.05, "{w}");
+        // RMSE of a saturated backlash is close to its half-width, peak-to-peak to 2b
+        assert!((error_peak_to_peak(&d, &a).unwrap() - 8.0).abs() < 1e-9);
+        let e = rmse(&d, &a).unwrap();
+        assert!(e > 3.0 && e < 4.0, "{e}");
+    }
+
+    #[test]
+    fn gain_and_offset_have_no_loop_but_do_have_error() {
+        let (d, r) = sine(3000);
+        let a: Vec<f64> = d.iter().map(|x| 0.7 * x - 3.0).collect();
+        let w = loop_width(&d, &r, &a).unwrap();
+        assert!(w < 0.7 * LOOP_BIN_DEG, "{w}");
+        assert!(rmse(&d, &a).unwrap() > 5.0);
+        assert!(error_peak_to_peak(&d, &a).unwrap() > 14.0);
+    }
+
+    #[test]
+    fn rmse_of_constant_error() {
+        assert!((rmse(&[1.0, 2.0, 3.0], &[3.0, 4.0, 5.0]).unwrap() - 2.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn bad_inputs_are_errors() {
+        assert!(rmse(&[], &[]).is_err());
+        assert!(rmse(&[1.0], &[1.0, 2.0]).is_err());
+        assert!(rmse(&[f64::NAN], &[1.0]).is_err());
+        // monotone command: no falling branch
+        assert!(loop_width(&[1.0, 2.0], &[1.0, 1.0], &[1.0, 2.0]).is_err());
+        assert!(MeanStd::of(&[]).is_err());
+        let m = MeanStd::of(&[1.0, 3.0]).unwrap();
+        assert_eq!(m.mean, 2.0);
+        assert!((m.std - 2f64.sqrt()).abs() < 1e-15);
+    }
+}
