@@ -1,0 +1,234 @@
+//! `kflex-cli run`: the hysteresis experiment of the paper's Table IX.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use kflex_control::{GridRow, OpenLoopGrid, OpenLoopScenario};
+use kflex_model::{AuroraNoise, JointModelKind, PlantConfig};
+use serde::Serialize;
+
+use crate::paper;
+
+/// Which joint-angle estimator closes the loop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Estimator {
+    /// No compensation: the plant driven by the master command alone.
+    None,
+}
+
+/// Which joint model computes the plant's angle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum JointArg {
+    /// Quasi-static analytic balance (fast).
+    Analytic,
+    /// rapier3d multibody chain.
+    Rapier,
+}
+
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Joint-angle estimator in the loop (kbjae, ibjae and lbhjae are not built yet).
+    #[arg(long, value_enum, default_value = "none")]
+    estimator: Estimator,
+    /// Sheath configurations, deg, comma separated.
+    #[arg(long, value_delimiter = ',', default_value = "0,90,180,270", allow_negative_numbers = true)]
+    sheath: Vec<f64>,
+    /// Periods of the paper's input (25 sin(t) + 25 deg, 0.159 Hz) to evaluate.
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    periods: f64,
+    /// Seeded repeats per configuration.
+    #[arg(long, default_value_t = 3)]
+    repeats: u32,
+    /// Base seed: repeat r uses seed + r for its plant spread and its sensor noise.
+    #[arg(long, default_value_t = 2020)]
+    seed: u64,
+    /// Control tick, s.
+    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
+    dt: f64,
+    /// Relative parameter spread between repeats (0 for identical plants).
+    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
+    spread: f64,
+    /// Score the true angle instead of the Aurora-like measurement.
+    #[arg(long)]
+    no_noise: bool,
+    /// Joint model of the plant.
+    #[arg(long, value_enum, default_value = "analytic")]
+    joint: JointArg,
+    /// Plant configuration (JSON, fields of kflex_model::PlantConfig; missing fields take defaults).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Write DIR/results.json.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+}
+
+/// One row of `results.json`. Field names are stable: later estimators extend, never rename.
+#[derive(Debug, Serialize)]
+struct Record {
+    estimator: Estimator,
+    sheath_deg: f64,
+    occlusion: &'static str,
+    rmse_deg: f64,
+    rmse_std_deg: f64,
+    max_hysteresis_deg: f64,
+    max_hysteresis_std_deg: f64,
+    error_peak_to_peak_deg: f64,
+    error_peak_to_peak_std_deg: f64,
+    paper_rmse_deg: Option<f64>,
+    paper_rmse_std_deg: Option<f64>,
+    paper_max_hysteresis_deg: Option<f64>,
+    paper_max_hysteresis_std_deg: Option<f64>,
+    repeats: u32,
+    seeds: Vec<u64>,
+    periods: f64,
+    dt_s: f64,
+    joint_model: JointModelKind,
+    max_hysteresis_definition: &'static str,
+}
+
+const WIDTH_DEFINITION: &str = "hysteresis loop width: largest gap between the falling- and rising-branch mean of the measured angle at equal command, 1-deg bins of theta_d";
+
+pub fn run(args: &RunArgs) -> Result<()> {
+    if args.sheath.is_empty() {
+        bail!("--sheath needs at least one angle");
+    }
+    let mut plant = match &args.config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading {}", path.display()))?;
+            serde_json::from_str::<PlantConfig>(&text)
+                .with_context(|| format!("parsing {}", path.display()))?
+        }
+        None => PlantConfig::default(),
+    };
+    plant.joint_model = match args.joint {
+        JointArg::Analytic => JointModelKind::Analytic,
+        JointArg::Rapier => JointModelKind::Rapier,
+    };
+    let grid = OpenLoopGrid {
+        plant,
+        scenario: OpenLoopScenario {
+            periods: args.periods,
+            dt_s: args.dt,
+            ..OpenLoopScenario::default()
+        },
+        sheaths_deg: args.sheath.clone(),
+        repeats: args.repeats,
+        seed: args.seed,
+        spread: args.spread,
+        noise: (!args.no_noise).then(AuroraNoise::default),
+    };
+    let rows = grid.run().context("running the experiment")?;
+    let records = rows
+        .iter()
+        .map(|row| record(args, row))
+        .collect::<Result<Vec<_>>>()?;
+    print_table(args, &records);
+    if let Some(dir) = &args.out {
+        let path = write_results(dir, &records)?;
+        println!("\nwrote {}", path.display());
+    }
+    Ok(())
+}
+
+fn record(args: &RunArgs, row: &GridRow) -> Result<Record> {
+    let paper = paper::table9_none(row.sheath_deg)?;
+    Ok(Record {
+        estimator: args.estimator,
+        sheath_deg: row.sheath_deg,
+        occlusion: "0%",
+        rmse_deg: row.rmse.mean,
+        rmse_std_deg: row.rmse.std,
+        max_hysteresis_deg: row.max_hysteresis.mean,
+        max_hysteresis_std_deg: row.max_hysteresis.std,
+        error_peak_to_peak_deg: row.error_peak_to_peak.mean,
+        error_peak_to_peak_std_deg: row.error_peak_to_peak.std,
+        paper_rmse_deg: paper.map(|p| p.0.mean),
+        paper_rmse_std_deg: paper.map(|p| p.0.std),
+        paper_max_hysteresis_deg: paper.map(|p| p.1.mean),
+        paper_max_hysteresis_std_deg: paper.map(|p| p.1.std),
+        repeats: args.repeats,
+        seeds: row.seeds.clone(),
+        periods: args.periods,
+        dt_s: args.dt,
+        joint_model: row.joint_model,
+        max_hysteresis_definition: WIDTH_DEFINITION,
+    })
+}
+
+fn pm(mean: f64, std: f64) -> String {
+    format!("{mean:6.2} ± {std:4.2}")
+}
+
+fn paper_pm(mean: Option<f64>, std: Option<f64>) -> String {
+    match (mean, std) {
+        (Some(m), Some(s)) => pm(m, s),
+        _ => format!("{:>13}", "—"),
+    }
+}
+
+fn print_table(args: &RunArgs, records: &[Record]) {
+    let seeds_last = args
+        .seed
+        .wrapping_add(u64::from(args.repeats.saturating_sub(1)));
+    println!(
+        "kflex run — estimator {:?}, input 25 sin(t) + 25 deg at 0.159 Hz, {} periods, {} repeats (seeds {}..={}), {:?} joint, {}",
+        args.estimator,
+        args.periods,
+        args.repeats,
+        args.seed,
+        seeds_last,
+        args.joint,
+        if args.no_noise {
+            "true angle"
+        } else {
+            "Aurora-like measurement"
+        }
+    );
+    println!(
+        "Paper: Baek et al., RA-L 2020, Table IX ('None' row). Maximum hysteresis = loop width (see docs).\n"
+    );
+    println!(
+        "{:>7} | {:^31} | {:^31}",
+        "sheath", "RMSE (deg)", "max. hysteresis (deg)"
+    );
+    println!(
+        "{:>7} | {:^15} {:^15} | {:^15} {:^15}",
+        "(deg)", "kflex", "paper", "kflex", "paper"
+    );
+    println!("{}", "-".repeat(73));
+    for r in records {
+        println!(
+            "{:>7} | {:>15} {:>15} | {:>15} {:>15}",
+            r.sheath_deg,
+            pm(r.rmse_deg, r.rmse_std_deg),
+            paper_pm(r.paper_rmse_deg, r.paper_rmse_std_deg),
+            pm(r.max_hysteresis_deg, r.max_hysteresis_std_deg),
+            paper_pm(r.paper_max_hysteresis_deg, r.paper_max_hysteresis_std_deg),
+        );
+    }
+}
+
+/// Writes `dir/results.json` atomically: a temporary file in the same folder, then a rename,
+/// so a reader never sees half a file and an old file survives a failed write.
+fn write_results(dir: &Path, records: &[Record]) -> Result<PathBuf> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let path = dir.join("results.json");
+    let tmp = dir.join(".results.json.tmp");
+    let json = serde_json::to_string_pretty(records).context("serialising results")?;
+    let write = || -> std::io::Result<()> {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(json.as_bytes())?;
+        f.write_all(b"\n")?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, &path)
+    };
+    if let Err(e) = write() {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e).with_context(|| format!("writing {}", path.display()));
+    }
+    Ok(path)
+}
