@@ -34,7 +34,12 @@ pub struct RunArgs {
     #[arg(long, value_enum, default_value = "none")]
     estimator: Estimator,
     /// Sheath configurations, deg, comma separated.
-    #[arg(long, value_delimiter = ',', default_value = "0,90,180,270", allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "0,90,180,270",
+        allow_negative_numbers = true
+    )]
     sheath: Vec<f64>,
     /// Periods of the paper's input (25 sin(t) + 25 deg, 0.159 Hz) to evaluate.
     #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]

@@ -8,9 +8,9 @@
 //! figures, each divided by its acceptance tolerance (±20 % RMSE, ±30 % width), on the nominal plant without noise or spread, one run each, with
 //! the protocol of `kflex-cli run`. Free parameters, searched in log space
 //! within plausible boxes (`BOX`) by a seeded random search, then by
-//! Nelder–Mead from the three best: friction coefficient μ, route wrap
+//! Nelder–Mead from the three best and from the shipped defaults: friction coefficient μ, route wrap
 //! Φ_route, Coulomb friction F_c, pretension T₀, contact stiffness k_φ,
-//! tendon stiffness k, drive backlash and pre-sliding length. The geometry
+//! tendon stiffness k, drive backlash, shaft coupling and friction sharpness. The geometry
 //! and masses keep their K-FLEX-scale defaults.
 //! `fit_calibration [SAMPLES]` sets the random-search size (default 600). The script prints the fitted constants to paste into
 //! `crates/kflex-model/src/calibration.rs` and the residual table for
@@ -22,7 +22,7 @@ use kflex_model::PlantConfig;
 const SHEATHS: [f64; 4] = [0.0, 90.0, 180.0, 270.0];
 const RMSE: [f64; 4] = [7.84, 9.95, 16.6, 21.9];
 const WIDTH: [f64; 4] = [9.23, 15.1, 18.3, 18.4];
-const NAMES: [&str; 8] = [
+const NAMES: [&str; 9] = [
     "friction_coefficient",
     "route_wrap_deg",
     "coulomb_friction_n",
@@ -30,18 +30,20 @@ const NAMES: [&str; 8] = [
     "contact_stiffness",
     "tendon_stiffness",
     "drive_backlash_mm",
-    "presliding_mm",
+    "sheath_coupling_mm_per_rad",
+    "friction_sharpness",
 ];
 /// Search box (natural units) of each parameter: physically plausible for a K-FLEX-scale instrument.
-const BOX: [(f64, f64); 8] = [
-    (0.05, 1.0),
-    (1.0, 360.0),
-    (0.01, 10.0),
-    (0.5, 30.0),
-    (1.0, 500.0),
-    (2.0, 200.0),
-    (0.001, 0.3),
-    (0.005, 1.0),
+const BOX: [(f64, f64); 9] = [
+    (0.05, 1.0),  // friction coefficient
+    (1.0, 360.0), // route wrap, deg
+    (0.01, 10.0), // Coulomb friction, N
+    (0.5, 30.0),  // pretension, N
+    (1.0, 500.0), // contact stiffness, N·mm/rad
+    (2.0, 200.0), // tendon stiffness, N/mm
+    (0.001, 0.3), // drive backlash, mm
+    (0.001, 1.0), // shaft coupling, mm/rad
+    (1.0, 6.0),   // friction sharpness
 ];
 /// Acceptance tolerances (relative): the cost is measured in units of them.
 const RMSE_TOL: f64 = 0.20;
@@ -56,7 +58,8 @@ fn config(x: &[f64]) -> PlantConfig {
     c.joint.contact_stiffness_nmm_per_rad = x[4].exp();
     c.sheath.tendon_stiffness_n_per_mm = x[5].exp();
     c.sheath.drive_backlash_mm = x[6].exp();
-    c.sheath.presliding_mm = x[7].exp();
+    c.sheath.sheath_coupling_mm_per_rad = x[7].exp();
+    c.sheath.friction_sharpness = x[8].exp();
     c
 }
 
@@ -177,8 +180,29 @@ fn main() {
         "random search over {samples} samples: best cost {:.4}",
         pool[0].1
     );
-    let mut best = (pool[0].0.clone(), pool[0].1);
-    for (i, (x0, c0)) in pool.iter().take(3).enumerate() {
+    // Nelder–Mead from the three best samples and from the shipped defaults
+    let d = PlantConfig::default();
+    let shipped = vec![
+        d.sheath.friction_coefficient.ln(),
+        d.sheath.route_wrap_deg.ln(),
+        d.sheath.coulomb_friction_n.ln(),
+        d.sheath.pretension_n.ln(),
+        d.joint.contact_stiffness_nmm_per_rad.ln(),
+        d.sheath.tendon_stiffness_n_per_mm.ln(),
+        d.sheath.drive_backlash_mm.ln(),
+        d.sheath.sheath_coupling_mm_per_rad.ln(),
+        d.sheath.friction_sharpness.ln(),
+    ];
+    let shipped_cost = cost(&shipped);
+    println!("shipped defaults: cost {shipped_cost:.4}");
+    let starts: Vec<(Vec<f64>, f64)> = pool
+        .iter()
+        .take(3)
+        .cloned()
+        .chain([(shipped, shipped_cost)])
+        .collect();
+    let mut best = (starts[0].0.clone(), starts[0].1);
+    for (i, (x0, c0)) in starts.iter().enumerate() {
         let (mut x, mut c) = nelder_mead(cost, x0, 0.3, 300);
         for _ in 0..2 {
             let (x2, c2) = nelder_mead(cost, &x, 0.1, 200);

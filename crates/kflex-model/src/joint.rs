@@ -183,9 +183,9 @@ fn balance(
 }
 
 /// Quasi-static analytic solve: the bend θ (rad) at which the tendons, the
-/// backbone and the external loads balance, clamped to the hard stops.
-/// Starts from `theta_guess` (the last tick's angle): Newton with a bisection
-/// fallback over the whole mechanical range.
+/// backbone and the external loads balance, within the hard stops. Newton
+/// from `theta_guess` (the last tick's angle), safeguarded by bisection over
+/// the mechanical range ([`crate::numeric::root_decreasing`]).
 pub fn solve_analytic(
     geometry: &TendonGeometry,
     joint: &JointParams,
@@ -193,40 +193,13 @@ pub fn solve_analytic(
     theta_guess: f64,
 ) -> f64 {
     let max = joint.max_theta_deg.to_radians();
-    let mut theta = theta_guess.clamp(-max, max);
-    for _ in 0..12 {
-        let (r, slope) = balance(geometry, joint, sheath, theta);
-        if slope.is_nan() || slope >= 0.0 || !r.is_finite() {
-            break;
-        }
-        let next = (theta - r / slope).clamp(-max, max);
-        if (next - theta).abs() < 1e-13 {
-            return next;
-        }
-        theta = next;
-    }
-    // Fallback: bisection on the full range (the balance decreases with θ).
-    let (r_hi, _) = balance(geometry, joint, sheath, max);
-    if r_hi >= 0.0 {
-        return max;
-    }
-    let (r_lo, _) = balance(geometry, joint, sheath, -max);
-    if r_lo <= 0.0 {
-        return -max;
-    }
-    let (mut lo, mut hi) = (-max, max);
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if balance(geometry, joint, sheath, mid).0 > 0.0 {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-        if hi - lo < 1e-14 {
-            break;
-        }
-    }
-    0.5 * (lo + hi)
+    crate::numeric::root_decreasing(
+        |t| balance(geometry, joint, sheath, t),
+        -max,
+        max,
+        theta_guess,
+        1e-13,
+    )
 }
 
 #[cfg(test)]

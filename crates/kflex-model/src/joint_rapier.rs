@@ -198,6 +198,14 @@ impl RapierJoint {
         self.contact_angles().iter().sum()
     }
 
+    /// Distal differential stroke `p = Σ d_t sin φ_j`, mm.
+    pub fn distal_stroke_mm(&self) -> f64 {
+        self.contact_angles()
+            .iter()
+            .map(|phi| self.geometry.tendon_offset_mm * phi.sin())
+            .sum()
+    }
+
     /// Internal steps taken since construction.
     pub fn steps_total(&self) -> u64 {
         self.steps_total

@@ -113,11 +113,11 @@ impl TendonGeometry {
     /// tendon `a`'s path changes by `delta_l_a_mm`.
     ///
     /// Eq. 1 is strictly decreasing over a validated range, so a safeguarded
-    /// Newton iteration on the bracket converges for every reachable value
-    /// (bisection whenever a Newton step leaves the bracket or stalls).
+    /// Newton iteration on the bracket ([`crate::numeric::root_decreasing`])
+    /// converges for every reachable value.
     pub fn theta_from_delta_l_a(&self, delta_l_a_mm: f64, max_theta: f64) -> Result<f64> {
         crate::error::finite("delta_l_a_mm", delta_l_a_mm)?;
-        let (mut lo, mut hi) = (-max_theta, max_theta);
+        let (lo, hi) = (-max_theta, max_theta);
         // decreasing: f(lo) is the largest value, f(hi) the smallest
         let (f_lo, f_hi) = (self.delta_l_a(lo), self.delta_l_a(hi));
         if delta_l_a_mm > f_lo || delta_l_a_mm < f_hi {
@@ -127,32 +127,13 @@ impl TendonGeometry {
                 max_mm: f_lo,
             });
         }
-        let mut theta = -delta_l_a_mm / self.tendon_offset_mm; // small-angle guess
-        if !(lo..=hi).contains(&theta) {
-            theta = 0.5 * (lo + hi);
-        }
-        for _ in 0..100 {
-            let g = self.delta_l_a(theta) - delta_l_a_mm;
-            if g.abs() < 1e-13 {
-                break;
-            }
-            // g is decreasing in theta
-            if g > 0.0 {
-                lo = theta;
-            } else {
-                hi = theta;
-            }
-            let slope = self.delta_l_a_slope(theta);
-            let newton = theta - g / slope;
-            theta = if slope < 0.0 && newton > lo && newton < hi {
-                newton
-            } else {
-                0.5 * (lo + hi)
-            };
-            if hi - lo < 1e-15 {
-                break;
-            }
-        }
+        let theta = crate::numeric::root_decreasing(
+            |t| (self.delta_l_a(t) - delta_l_a_mm, self.delta_l_a_slope(t)),
+            lo,
+            hi,
+            -delta_l_a_mm / self.tendon_offset_mm, // small-angle guess
+            1e-14,
+        );
         Ok(theta)
     }
 

@@ -24,6 +24,7 @@ pub mod hysteresis;
 pub mod joint;
 pub mod joint_rapier;
 pub mod kinematics;
+pub mod numeric;
 pub mod plant;
 pub mod trajectory;
 pub mod transmission;

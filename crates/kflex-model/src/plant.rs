@@ -344,13 +344,20 @@ impl Plant {
                 what: "joint angle",
             });
         }
+        // the joint has answered: the friction state moves to where it settled
+        let p = match &self.joint {
+            JointSolver::Analytic => geometry.differential_stroke(theta),
+            JointSolver::Rapier(j) => j.distal_stroke_mm(),
+        };
+        if let Err(e) = self.sheath.commit(p) {
+            self.sheath = sheath_before;
+            return Err(e);
+        }
         // translation: rate-limited stage
         let max_move = self.config.translation.max_speed_mm_s * dt_s;
         let translation = self.state.translation_mm
             + (command.translation_mm - self.state.translation_mm).clamp(-max_move, max_move);
-        let force = self
-            .sheath
-            .distal_force(geometry.differential_stroke(theta));
+        let force = self.sheath.distal_force(p);
         let theta_deg = theta.to_degrees();
         let (noise_theta, noise_translation) = match &self.noise {
             Some((nt, nd)) => (nt.sample(&mut self.rng), nd.sample(&mut self.rng)),

@@ -13,21 +13,37 @@ struct Golden {
 }
 
 fn load(case: &str) -> Golden {
-    let path = format!("{}/tests/data/bouc_wen_{case}.csv", env!("CARGO_MANIFEST_DIR"));
+    let path = format!(
+        "{}/tests/data/bouc_wen_{case}.csv",
+        env!("CARGO_MANIFEST_DIR")
+    );
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     let mut lines = text.lines();
     let header = lines.next().expect("parameter line");
     let value = |key: &str| -> f64 {
-        let start = header.find(&format!("{key}=")).unwrap_or_else(|| panic!("{key} in {header}")) + key.len() + 1;
+        let start = header
+            .find(&format!("{key}="))
+            .unwrap_or_else(|| panic!("{key} in {header}"))
+            + key.len()
+            + 1;
         let rest = &header[start..];
         let end = rest.find([',', ' ']).unwrap_or(rest.len());
         rest[..end].parse().unwrap_or_else(|e| panic!("{key}: {e}"))
     };
-    let params = BoucWenParams { a: value("A"), beta: value("beta"), gamma: value("gamma"), n: value("n"), alpha: 0.0 };
+    let params = BoucWenParams {
+        a: value("A"),
+        beta: value("beta"),
+        gamma: value("gamma"),
+        n: value("n"),
+        alpha: 0.0,
+    };
     assert_eq!(lines.next(), Some("t,x,z"));
     let (mut x, mut z) = (Vec::new(), Vec::new());
     for line in lines.filter(|l| !l.trim().is_empty()) {
-        let cols: Vec<f64> = line.split(',').map(|c| c.trim().parse().expect("number")).collect();
+        let cols: Vec<f64> = line
+            .split(',')
+            .map(|c| c.trim().parse().expect("number"))
+            .collect();
         x.push(cols[1]);
         z.push(cols[2]);
     }
@@ -38,7 +54,10 @@ fn max_error(case: &str) -> f64 {
     let g = load(case);
     let mut bw = BoucWen::new(g.params, g.x[0]).unwrap();
     assert_eq!(g.z[0], 0.0);
-    g.x.iter().zip(&g.z).map(|(&x, &z)| (bw.advance(x).unwrap() - z).abs()).fold(0.0, f64::max)
+    g.x.iter()
+        .zip(&g.z)
+        .map(|(&x, &z)| (bw.advance(x).unwrap() - z).abs())
+        .fold(0.0, f64::max)
 }
 
 #[test]

@@ -436,3 +436,115 @@ proptest! {
         }
     }
 }
+
+/// Output swing and dead zone of one cycle of the paper's input after one warm-up cycle:
+/// (θ_a max − θ_a min, command travel after the top reversal before θ_a has fallen 0.5 deg).
+fn swing_and_dead_zone(sheath_deg: f64) -> (f64, f64) {
+    let mut plant = Plant::new(PlantConfig {
+        sheath_deg,
+        ..PlantConfig::default()
+    })
+    .unwrap();
+    let traj = Trajectory::Sine(kflex_model::Sine {
+        phase_rad: -std::f64::consts::FRAC_PI_2,
+        ..kflex_model::Sine::PAPER
+    })
+    .sampler()
+    .unwrap();
+    let dt = 0.005;
+    let period = 1.0 / 0.159;
+    let n = (2.0 * period / dt) as usize;
+    let mut out = Vec::with_capacity(n);
+    for k in 0..n {
+        let s = traj.sample(k as f64 * dt);
+        out.push((
+            s.theta_deg,
+            plant
+                .step(
+                    Command {
+                        theta_deg: s.theta_deg,
+                        translation_mm: 0.0,
+                    },
+                    dt,
+                )
+                .unwrap()
+                .theta_deg,
+        ));
+    }
+    let second = &out[n / 2..];
+    let hi = second.iter().map(|p| p.1).fold(f64::MIN, f64::max);
+    let lo = second.iter().map(|p| p.1).fold(f64::MAX, f64::min);
+    // top reversal of the command in the second cycle: its maximum
+    let top = (0..second.len())
+        .max_by(|&a, &b| second[a].0.total_cmp(&second[b].0))
+        .unwrap();
+    let theta_at_top = second[top].1.max(
+        second[top..]
+            .iter()
+            .take(50)
+            .map(|p| p.1)
+            .fold(f64::MIN, f64::max),
+    );
+    let moved = second[top..]
+        .iter()
+        .position(|p| p.1 < theta_at_top - 0.5)
+        .unwrap();
+    (hi - lo, second[top].0 - second[top + moved].0)
+}
+
+#[test]
+fn lost_motion_and_dead_zone_grow_with_the_bend() {
+    let results: Vec<(f64, f64)> = [0.0, 90.0, 180.0, 270.0]
+        .into_iter()
+        .map(swing_and_dead_zone)
+        .collect();
+    for w in results.windows(2) {
+        assert!(
+            w[1].0 < w[0].0,
+            "output swing should shrink (lost motion grows): {results:?}"
+        );
+        assert!(
+            w[1].1 > w[0].1,
+            "dead zone after reversal should grow: {results:?}"
+        );
+    }
+    // the straight sheath still has a dead zone (drive backlash) but follows most of the 50 deg
+    assert!(results[0].0 > 30.0 && results[0].1 > 1.0, "{results:?}");
+}
+
+#[test]
+fn sheath_friction_develops_and_reverses_with_the_motion() {
+    // the friction state follows the direction of travel (guards the plant's commit of it)
+    let mut plant = Plant::new(PlantConfig {
+        sheath_deg: 180.0,
+        ..PlantConfig::default()
+    })
+    .unwrap();
+    let mut z_up = 0.0;
+    for k in 1..=300 {
+        z_up = plant
+            .step(
+                Command {
+                    theta_deg: 0.15 * f64::from(k),
+                    translation_mm: 0.0,
+                },
+                0.01,
+            )
+            .unwrap()
+            .friction_state;
+    }
+    let mut z_down = 0.0;
+    for k in 1..=300 {
+        z_down = plant
+            .step(
+                Command {
+                    theta_deg: 45.0 - 0.15 * f64::from(k),
+                    translation_mm: 0.0,
+                },
+                0.01,
+            )
+            .unwrap()
+            .friction_state;
+    }
+    assert!(z_up > 0.5 && z_down < -0.5, "z up {z_up}, down {z_down}");
+}
