@@ -176,10 +176,14 @@ impl BoucWen {
         }
     }
 
-    /// `dz/dx` for motion in direction `sign` (±1).
-    fn slope(&self, z: f64, sign: f64) -> f64 {
+    /// `dz/dx` at state `z` for motion in direction `sign` (±1).
+    pub fn slope(&self, z: f64, sign: f64) -> f64 {
         let p = &self.params;
-        let zn = if p.n == 2.0 { z * z } else { z.abs().powf(p.n) };
+        let zn = if p.n.fract() == 0.0 {
+            z.abs().powi(p.n as i32)
+        } else {
+            z.abs().powf(p.n)
+        };
         p.a - (p.beta * sign * z.signum() + p.gamma) * zn
     }
 

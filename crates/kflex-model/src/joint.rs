@@ -114,34 +114,30 @@ pub const MAX_CONTACTS: usize = 32;
 /// Generalised force of gravity and tip load along θ (N·mm/rad), with all
 /// `2n` contacts at `φ = θ/2n`: `(1/2n) Σ_j τ_j`, `τ_j` the moment about contact `j`.
 pub fn external_generalised_force(joint: &JointParams, two_n: usize, theta: f64) -> f64 {
-    let two_n = two_n.min(MAX_CONTACTS);
-    let phi = theta / two_n as f64;
+    let [gx, _, gz] = joint.gravity_m_s2;
+    let [fx, _, fz] = joint.tip_load_n;
+    if gx == 0.0 && gz == 0.0 && fx == 0.0 && fz == 0.0 {
+        return 0.0;
+    }
+    let two_n = two_n.clamp(1, MAX_CONTACTS);
     let l = joint.link_length_mm;
-    let g = joint.gravity_m_s2;
-    let (gx, gz) = (g[0], g[2]);
-    let link_w = joint.link_mass_g * 1e-3; // kg → N per (m/s²)
-    let tool_w = joint.tool_mass_g * 1e-3;
+    let (link_w, tool_w) = (joint.link_mass_g * 1e-3, joint.tool_mass_g * 1e-3); // kg: N per (m/s²)
+    // headings ψ_j = (j+1)φ by incremental rotation: one sin_cos per call
+    let (s1, c1) = (theta / two_n as f64).sin_cos();
+    let (mut s, mut c) = (0.0f64, 1.0f64);
     let mut bases = [[0.0f64; 2]; MAX_CONTACTS];
     let mut coms = [[0.0f64; 2]; MAX_CONTACTS];
     let mut p = [0.0f64, 0.0];
-    let mut heading = 0.0;
     for j in 0..two_n {
-        heading += phi;
-        let (s, c) = heading.sin_cos();
+        (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
         bases[j] = p;
         coms[j] = [p[0] + 0.5 * l * s, p[1] + 0.5 * l * c];
         p = [p[0] + l * s, p[1] + l * c];
     }
-    let (s, c) = heading.sin_cos();
-    let tool_com = [
-        p[0] + 0.5 * joint.tool_length_mm * s,
-        p[1] + 0.5 * joint.tool_length_mm * c,
-    ];
-    let tip = [
-        p[0] + joint.tool_length_mm * s,
-        p[1] + joint.tool_length_mm * c,
-    ];
-    // moment about +y of force (fx, fz) at r relative to base b: Δz fx − Δx fz
+    let lt = joint.tool_length_mm;
+    let tool_com = [p[0] + 0.5 * lt * s, p[1] + 0.5 * lt * c];
+    let tip = [p[0] + lt * s, p[1] + lt * c];
+    // moment about +y of a force (fx, fz) at r, about base b: Δz fx − Δx fz
     let moment =
         |b: PlanePoint, r: PlanePoint, fx: f64, fz: f64| (r[1] - b[1]) * fx - (r[0] - b[0]) * fz;
     let mut total = 0.0;
@@ -151,7 +147,7 @@ pub fn external_generalised_force(joint: &JointParams, two_n: usize, theta: f64)
             total += moment(b, *com, link_w * gx, link_w * gz);
         }
         total += moment(b, tool_com, tool_w * gx, tool_w * gz);
-        total += moment(b, tip, joint.tip_load_n[0], joint.tip_load_n[2]);
+        total += moment(b, tip, fx, fz);
     }
     total / two_n as f64
 }
@@ -185,7 +181,8 @@ fn balance(
 /// Quasi-static analytic solve: the bend θ (rad) at which the tendons, the
 /// backbone and the external loads balance, within the hard stops. Newton
 /// from `theta_guess` (the last tick's angle), safeguarded by bisection over
-/// the mechanical range ([`crate::numeric::root_decreasing`]).
+/// the mechanical range ([`crate::numeric::root_decreasing`]), to 1e-10 rad
+/// (6e-9 deg: far below any sensor, and a Newton step cheaper than 1e-13).
 pub fn solve_analytic(
     geometry: &TendonGeometry,
     joint: &JointParams,
@@ -198,7 +195,7 @@ pub fn solve_analytic(
         -max,
         max,
         theta_guess,
-        1e-13,
+        1e-10,
     )
 }
 

@@ -268,10 +268,7 @@ impl TendonSheath {
             Some(bw) => {
                 let z = bw.peek(e);
                 // dz/dE in the direction of travel, for Newton slopes
-                let params = bw.params();
-                let dir = (e - bw.x()).signum();
-                let dz_de = params.a
-                    - (params.beta * dir * z.signum() + params.gamma) * z.abs().powf(params.n);
+                let dz_de = bw.slope(z, (e - bw.x()).signum());
                 (
                     e - self.friction_n * z,
                     (1.0 - self.friction_n * dz_de).clamp(0.0, 1.0),
