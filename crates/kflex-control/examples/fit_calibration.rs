@@ -10,7 +10,7 @@
 //! within plausible boxes (`BOX`) by a seeded random search, then by
 //! Nelder–Mead from the three best and from the shipped defaults: friction coefficient μ, route wrap
 //! Φ_route, Coulomb friction F_c, pretension T₀, contact stiffness k_φ,
-//! tendon stiffness k, drive backlash, shaft coupling and friction sharpness. The geometry
+//! tendon stiffness k, drive backlash and shaft coupling. The geometry
 //! and masses keep their K-FLEX-scale defaults.
 //! `fit_calibration [SAMPLES]` sets the random-search size (default 600). The script prints the fitted constants to paste into
 //! `crates/kflex-model/src/calibration.rs` and the residual table for
@@ -22,7 +22,7 @@ use kflex_model::PlantConfig;
 const SHEATHS: [f64; 4] = [0.0, 90.0, 180.0, 270.0];
 const RMSE: [f64; 4] = [7.84, 9.95, 16.6, 21.9];
 const WIDTH: [f64; 4] = [9.23, 15.1, 18.3, 18.4];
-const NAMES: [&str; 9] = [
+const NAMES: [&str; 8] = [
     "friction_coefficient",
     "route_wrap_deg",
     "coulomb_friction_n",
@@ -31,10 +31,9 @@ const NAMES: [&str; 9] = [
     "tendon_stiffness",
     "drive_backlash_mm",
     "sheath_coupling_mm_per_rad",
-    "friction_sharpness",
 ];
 /// Search box (natural units) of each parameter: physically plausible for a K-FLEX-scale instrument.
-const BOX: [(f64, f64); 9] = [
+const BOX: [(f64, f64); 8] = [
     (0.05, 1.0),  // friction coefficient
     (1.0, 360.0), // route wrap, deg
     (0.01, 10.0), // Coulomb friction, N
@@ -43,7 +42,6 @@ const BOX: [(f64, f64); 9] = [
     (2.0, 200.0), // tendon stiffness, N/mm
     (0.001, 0.3), // drive backlash, mm
     (0.001, 1.0), // shaft coupling, mm/rad
-    (1.0, 6.0),   // friction sharpness
 ];
 /// Acceptance tolerances (relative): the cost is measured in units of them.
 const RMSE_TOL: f64 = 0.20;
@@ -59,7 +57,6 @@ fn config(x: &[f64]) -> PlantConfig {
     c.sheath.tendon_stiffness_n_per_mm = x[5].exp();
     c.sheath.drive_backlash_mm = x[6].exp();
     c.sheath.sheath_coupling_mm_per_rad = x[7].exp();
-    c.sheath.friction_sharpness = x[8].exp();
     c
 }
 
@@ -191,7 +188,6 @@ fn main() {
         d.sheath.tendon_stiffness_n_per_mm.ln(),
         d.sheath.drive_backlash_mm.ln(),
         d.sheath.sheath_coupling_mm_per_rad.ln(),
-        d.sheath.friction_sharpness.ln(),
     ];
     let shipped_cost = cost(&shipped);
     println!("shipped defaults: cost {shipped_cost:.4}");

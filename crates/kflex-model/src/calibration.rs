@@ -7,18 +7,19 @@
 
 use crate::transmission::SheathParams;
 
-/// Fitted tendon-sheath parameters (all of them free in the fit).
+/// Fitted tendon-sheath parameters (all free in the fit except the distal run's
+/// stiffness, set for about 50 mm of tendon pair between the sheath and the joint).
 pub const FITTED_SHEATH: SheathParams = SheathParams {
-    friction_coefficient: 0.1519,
-    route_wrap_deg: 1.0003,
-    pretension_n: 3.935,
-    tendon_stiffness_n_per_mm: 27.48,
-    coulomb_friction_n: 0.0233,
-    drive_backlash_mm: 0.1569,
-    sheath_coupling_mm_per_rad: 0.0856,
-    friction_sharpness: 6.0,
+    friction_coefficient: 0.1615,
+    route_wrap_deg: 4.566,
+    pretension_n: 3.757,
+    tendon_stiffness_n_per_mm: 31.93,
+    coulomb_friction_n: 0.9941,
+    drive_backlash_mm: 0.1267,
+    sheath_coupling_mm_per_rad: 0.0816,
+    distal_stiffness_n_per_mm: 800.0,
 };
 
 /// Fitted bending stiffness of one rolling contact, N·mm/rad. The pretension's
-/// straightening moment, `2T₀(R − B) ≈ 14.2` N·mm/rad per contact, adds to it.
-pub const FITTED_CONTACT_STIFFNESS: f64 = 29.29;
+/// straightening moment, `2T₀(R − B) ≈ 13.5` N·mm/rad per contact, adds to it.
+pub const FITTED_CONTACT_STIFFNESS: f64 = 34.86;

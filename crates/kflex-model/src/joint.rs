@@ -179,10 +179,12 @@ fn balance(
 }
 
 /// Quasi-static analytic solve: the bend θ (rad) at which the tendons, the
-/// backbone and the external loads balance, within the hard stops. Newton
-/// from `theta_guess` (the last tick's angle), safeguarded by bisection over
-/// the mechanical range ([`crate::numeric::root_decreasing`]), to 1e-10 rad
-/// (6e-9 deg: far below any sensor, and a Newton step cheaper than 1e-13).
+/// backbone and the external loads balance, within the hard stops, reached
+/// from `theta_guess` (the last tick's angle) by following the net moment
+/// ([`crate::numeric::follow_root`]), to 1e-10 rad (6e-9 deg). Under a tip
+/// load that pushes back along the instrument hard enough to overcome the
+/// joint's stiffness, no equilibrium stays near the last angle and the joint
+/// snaps through to the next one (buckling), as a real one would.
 pub fn solve_analytic(
     geometry: &TendonGeometry,
     joint: &JointParams,
@@ -190,11 +192,15 @@ pub fn solve_analytic(
     theta_guess: f64,
 ) -> f64 {
     let max = joint.max_theta_deg.to_radians();
-    crate::numeric::root_decreasing(
+    // follow the path from the last angle: under compressive loads the balance can
+    // have several roots, and the joint reaches the first stable one in the
+    // direction the net moment turns it
+    crate::numeric::follow_root(
         |t| balance(geometry, joint, sheath, t),
         -max,
         max,
         theta_guess,
+        0.01,
         1e-10,
     )
 }
@@ -212,7 +218,9 @@ mod tests {
         sheath.advance(geometry.differential_stroke(0.6)).unwrap();
         let theta = solve_analytic(&geometry, &joint, &sheath, 0.0);
         assert!(theta > 0.0 && theta < 0.6, "{theta}");
-        assert!(balance(&geometry, &joint, &sheath, theta).0.abs() < 1e-9);
+        // a root: the balance changes sign across it
+        assert!(balance(&geometry, &joint, &sheath, theta - 1e-9).0 > 0.0);
+        assert!(balance(&geometry, &joint, &sheath, theta + 1e-9).0 < 0.0);
         // the same answer from a far-away start
         let again = solve_analytic(&geometry, &joint, &sheath, -1.5);
         assert!((again - theta).abs() < 1e-10);

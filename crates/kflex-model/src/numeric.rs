@@ -1,10 +1,13 @@
 //! Small numerical tools shared by the model.
 
-/// Root of a decreasing function on `[lo, hi]`: Newton steps from `guess`,
-/// safeguarded by bisection (every evaluation narrows the bracket, so Newton
-/// cannot cycle), to a bracket narrower than `tol`. `f` returns the value and
-/// its slope (an estimate is enough). If `f` stays positive up to `hi` the
-/// answer is `hi`; if it is negative from `lo`, `lo`: the bounds act as stops.
+/// Root of a function that is decreasing on `[lo, hi]` (positive at `lo`,
+/// negative at `hi`): Newton steps from `guess`, safeguarded rtsafe-style —
+/// a bisection whenever the Newton step leaves the bracket or fails to halve
+/// it — until the bracket is narrower than `tol`. `f` returns the value and
+/// its slope (an estimate is enough; a poor one costs steps, not accuracy).
+/// If `f` stays positive up to `hi` the answer is `hi`; if it is negative from
+/// `lo`, `lo`: the bounds act as stops. The answer is always within `tol` of a
+/// sign change of `f` (or a stop), never the middle of an unresolved bracket.
 pub fn root_decreasing(
     f: impl Fn(f64) -> (f64, f64),
     lo: f64,
@@ -12,13 +15,15 @@ pub fn root_decreasing(
     guess: f64,
     tol: f64,
 ) -> f64 {
-    let (lo0, hi0) = (lo, hi);
     let (mut lo, mut hi) = (lo, hi);
+    let (lo0, hi0) = (lo, hi);
     let mut x = if guess.is_finite() {
         guess.clamp(lo, hi)
     } else {
         0.5 * (lo + hi)
     };
+    let mut width_before = hi - lo;
+    // 200 iterations: bisection alone resolves 2^-200 of the range
     for _ in 0..200 {
         let (v, slope) = f(x);
         if v == 0.0 {
@@ -29,21 +34,16 @@ pub fn root_decreasing(
         } else {
             hi = x;
         }
-        if hi - lo <= tol {
+        let width = hi - lo;
+        if width <= tol {
             break;
         }
         let newton = x - v / slope;
-        let next = if slope < 0.0 && newton > lo && newton < hi {
-            newton
-        } else {
-            0.5 * (lo + hi)
-        };
-        if (next - x).abs() <= 0.25 * tol {
-            return next;
-        }
-        x = next;
+        let newton_ok = slope < 0.0 && newton > lo && newton < hi && width <= 0.5 * width_before;
+        width_before = width;
+        x = if newton_ok { newton } else { 0.5 * (lo + hi) };
     }
-    // at a stop, say so exactly
+    // resolved to tol: report the stop exactly where the root is at it
     if hi <= lo0 + tol && f(lo0).0 <= 0.0 {
         return lo0;
     }
@@ -51,6 +51,45 @@ pub fn root_decreasing(
         return hi0;
     }
     0.5 * (lo + hi)
+}
+
+/// The first root of `f` met when walking from `start` in the direction `f`
+/// points to (up where `f(start) > 0`, down where it is negative), within
+/// `[lo, hi]`: quasi-static path following. Steps of `step` doubling until the
+/// sign changes, then [`root_decreasing`] on that bracket. Returns the bound
+/// reached if there is no sign change before it.
+pub fn follow_root(
+    f: impl Fn(f64) -> (f64, f64),
+    lo: f64,
+    hi: f64,
+    start: f64,
+    step: f64,
+    tol: f64,
+) -> f64 {
+    let start = if start.is_finite() {
+        start.clamp(lo, hi)
+    } else {
+        0.5 * (lo + hi)
+    };
+    let (v0, _) = f(start);
+    if v0 == 0.0 {
+        return start;
+    }
+    let dir = v0.signum();
+    let (mut near, mut h) = (start, step);
+    loop {
+        let far = (near + dir * h).clamp(lo, hi);
+        let (v, _) = f(far);
+        if v.signum() != dir || v == 0.0 {
+            let (a, b) = if dir > 0.0 { (near, far) } else { (far, near) };
+            return root_decreasing(&f, a, b, 0.5 * (a + b), tol);
+        }
+        if far == lo || far == hi {
+            return far;
+        }
+        near = far;
+        h *= 2.0;
+    }
 }
 
 #[cfg(test)]
@@ -72,16 +111,38 @@ mod tests {
     }
 
     #[test]
-    fn survives_a_newton_cycle_and_bad_slopes() {
-        // piecewise-linear with a kink where plain Newton with a stale slope cycles
+    fn a_too_steep_slope_estimate_still_converges_to_the_root() {
+        // the estimate is 10x the true slope: Newton creeps; the safeguard must bisect
+        let f = |x: f64| (0.5 - x, -10.0);
+        let r = root_decreasing(f, -2.0, 2.0, -1.9, 1e-12);
+        assert!((r - 0.5).abs() < 1e-11, "{r}");
+    }
+
+    #[test]
+    fn survives_a_kink_and_a_zero_slope() {
         let f = |x: f64| {
             if x < 1.0 {
                 (1.0 - 0.01 * x, -1.0)
             } else {
-                (1.0 - 0.01 - 5.0 * (x - 1.0), 0.0)
+                (0.99 - 5.0 * (x - 1.0), 0.0)
             }
         };
         let r = root_decreasing(f, -10.0, 10.0, 0.0, 1e-13);
         assert!((r - (1.0 + 0.99 / 5.0)).abs() < 1e-11, "{r}");
+    }
+
+    #[test]
+    fn path_following_takes_the_nearest_stable_root() {
+        // f = x − x³: roots at −1 and +1 (stable: f decreases through them) and 0 (unstable)
+        let f = |x: f64| (x - x * x * x, 1.0 - 3.0 * x * x);
+        // from 0.5, f > 0: walk up to the stable root +1, not down to 0
+        assert!((follow_root(f, -3.0, 3.0, 0.5, 0.01, 1e-12) - 1.0).abs() < 1e-10);
+        // from −0.5, f < 0: walk down to −1
+        assert!((follow_root(f, -3.0, 3.0, -0.5, 0.01, 1e-12) + 1.0).abs() < 1e-10);
+        // no root before the stop
+        assert_eq!(
+            follow_root(|x| (5.0 - x, -1.0), -1.0, 2.0, 0.0, 0.01, 1e-12),
+            2.0
+        );
     }
 }
