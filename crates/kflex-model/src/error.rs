@@ -50,6 +50,20 @@ pub enum ModelError {
         /// Largest reachable length change, mm.
         max_mm: f64,
     },
+    /// An image buffer whose size does not match its dimensions, or images of different sizes.
+    #[error("{what}: expected {expected} pixels ({width}×{height}), got {got}")]
+    ImageSize {
+        /// Which buffer.
+        what: &'static str,
+        /// Width it claims, px.
+        width: u32,
+        /// Height it claims, px.
+        height: u32,
+        /// Pixels it should have.
+        expected: usize,
+        /// Pixels it has.
+        got: usize,
+    },
     /// The physics engine produced a state that is not finite; the plant keeps its last good state.
     #[error("the joint simulation diverged ({what}); the plant state was left unchanged")]
     Diverged {

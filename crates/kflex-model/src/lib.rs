@@ -19,20 +19,26 @@
 #![warn(missing_docs)]
 
 pub mod calibration;
+pub mod camera;
 pub mod error;
 pub mod hysteresis;
+pub mod instrument;
 pub mod joint;
 pub mod joint_rapier;
 pub mod kinematics;
 pub mod numeric;
 pub mod plant;
+pub mod raster;
 pub mod trajectory;
 pub mod transmission;
 
+pub use camera::{Camera, Intrinsics};
 pub use error::{ModelError, Result};
 pub use hysteresis::{BoucWen, BoucWenParams, Play};
+pub use instrument::{Capsule, Instrument, InstrumentParams, InstrumentShape, Part};
 pub use joint::{JointModelKind, JointParams};
 pub use kinematics::TendonGeometry;
 pub use plant::{AuroraNoise, Command, Plant, PlantConfig, PlantState, TranslationParams};
+pub use raster::Mask;
 pub use trajectory::{Sample, Sine, Trajectory, TrajectorySampler};
 pub use transmission::{Distal, SheathParams, TendonSheath, TendonTensions};

@@ -1,0 +1,53 @@
+//! Silhouette throughput. `cargo bench -p kflex-model --bench render`
+//! Goal (issue 3): ≥ 20,000 48×48 silhouettes per second on one core.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use kflex_model::camera::Camera;
+use kflex_model::instrument::Instrument;
+use kflex_model::raster::{Mask, Rasterizer};
+
+fn silhouettes(c: &mut Criterion) {
+    let instrument = Instrument::kflex();
+    let camera = Camera::default();
+    // a 48×48 region of interest around the working range, as IBJAE uses
+    let roi = camera.with_intrinsics(
+        camera
+            .intrinsics
+            .region(250.0, 330.0, 150.0, 150.0, 48, 48)
+            .expect("roi"),
+    );
+    let mut shape = instrument.shape(0.0, 10.0).expect("shape");
+    let mut raster = Rasterizer::new();
+    let mut mask = Mask::new(48, 48).expect("mask");
+    let mut theta = 0.0;
+    c.bench_function("silhouette_48x48", |b| {
+        b.iter(|| {
+            theta = (theta + 0.37) % 50.0;
+            instrument
+                .shape_into(theta, 10.0, &mut shape)
+                .expect("shape");
+            mask.clear();
+            raster.silhouette(&roi, &shape, &mut mask).expect("render");
+            black_box(mask.count())
+        })
+    });
+    let mut full = Mask::new(640, 480).expect("mask");
+    c.bench_function("silhouette_640x480", |b| {
+        b.iter(|| {
+            theta = (theta + 0.37) % 50.0;
+            instrument
+                .shape_into(theta, 10.0, &mut shape)
+                .expect("shape");
+            full.clear();
+            raster
+                .silhouette(&camera, &shape, &mut full)
+                .expect("render");
+            black_box(full.count())
+        })
+    });
+}
+
+criterion_group!(benches, silhouettes);
+criterion_main!(benches);

@@ -1,0 +1,252 @@
+//! Camera and silhouettes: projection of known points, the rasterizer against an
+//! independent ray cast (parry's capsules), resolution of the 48×48 region of
+//! interest, and bad input.
+
+use kflex_model::ModelError;
+use kflex_model::camera::{Camera, Intrinsics};
+use kflex_model::instrument::{Instrument, InstrumentShape};
+use kflex_model::raster::{Mask, Rasterizer};
+use nalgebra::Point3;
+use rapier3d::math::{Pose, Vector as PVec};
+use rapier3d::parry::query::{Ray, RayCast};
+use rapier3d::parry::shape::Capsule as ParryCapsule;
+
+fn render(camera: &Camera, shape: &InstrumentShape) -> Mask {
+    let k = camera.intrinsics;
+    let mut mask = Mask::new(k.width, k.height).unwrap();
+    Rasterizer::new()
+        .silhouette(camera, shape, &mut mask)
+        .unwrap();
+    mask
+}
+
+/// The reference: a ray through every pixel centre against parry's capsules (f32).
+fn ray_cast(camera: &Camera, shape: &InstrumentShape) -> Mask {
+    let k = camera.intrinsics;
+    let to_cam = |p: [f64; 3]| {
+        let q = camera.camera_from_overtube * Point3::from(p);
+        PVec::new(q.x as f32, q.y as f32, q.z as f32)
+    };
+    let capsules: Vec<ParryCapsule> = shape
+        .capsules
+        .iter()
+        .map(|c| ParryCapsule::new(to_cam(c.a), to_cam(c.b), c.radius as f32))
+        .collect();
+    let mut data = vec![0u8; (k.width * k.height) as usize];
+    for y in 0..k.height {
+        for x in 0..k.width {
+            let d = camera.ray_direction(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            let ray = Ray::new(PVec::ZERO, PVec::new(d[0] as f32, d[1] as f32, d[2] as f32));
+            if capsules
+                .iter()
+                .any(|c| c.cast_ray(&Pose::IDENTITY, &ray, 1e4, true).is_some())
+            {
+                data[(y * k.width + x) as usize] = 1;
+            }
+        }
+    }
+    Mask::from_raw(k.width, k.height, data).unwrap()
+}
+
+/// A square region of interest around the joint and tool over bends `thetas` and translations `ds`.
+fn roi(camera: &Camera, instrument: &Instrument, thetas: &[f64], ds: &[f64]) -> (f64, f64, f64) {
+    let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+    for &theta in thetas {
+        for &d in ds {
+            let shape = instrument.shape(theta, d).unwrap();
+            for c in &shape.capsules[1..] {
+                for p in [c.a, c.b] {
+                    let uv = camera.project(p).unwrap();
+                    for i in 0..2 {
+                        lo[i] = lo[i].min(uv[i]);
+                        hi[i] = hi[i].max(uv[i]);
+                    }
+                }
+            }
+        }
+    }
+    let side = (hi[0] - lo[0]).max(hi[1] - lo[1]) * 1.2;
+    (
+        0.5 * (lo[0] + hi[0]) - 0.5 * side,
+        0.5 * (lo[1] + hi[1]) - 0.5 * side,
+        side,
+    )
+}
+
+#[test]
+fn projects_known_points() {
+    let camera = Camera::default();
+    let k = camera.intrinsics;
+    let on_axis = camera.project([0.0, 0.0, 30.0]).unwrap();
+    assert!((on_axis[0] - k.cx).abs() < 1e-12 && (on_axis[1] - k.cy).abs() < 1e-12);
+    let p = camera.project([3.0, -2.0, 20.0]).unwrap();
+    assert!(
+        (p[0] - (k.cx + k.fx * 0.15)).abs() < 1e-9 && (p[1] - (k.cy - k.fy * 0.1)).abs() < 1e-9
+    );
+    assert!(
+        camera.project([0.0, 0.0, -1.0]).is_none(),
+        "behind the camera"
+    );
+    // 100 deg horizontal field of view: a point at 50 deg off-axis lands on the image edge
+    let edge = camera
+        .project([50f64.to_radians().tan() * 10.0, 0.0, 10.0])
+        .unwrap();
+    assert!((edge[0] - f64::from(k.width)).abs() < 1e-9);
+    // a region of interest maps its corner to (0, 0) and its far corner to (w, h)
+    let r = k.region(100.0, 50.0, 200.0, 200.0, 48, 48).unwrap();
+    let cam_r = camera.with_intrinsics(r);
+    let world = [
+        (100.0 - k.cx) / k.fx * 10.0,
+        (50.0 - k.cy) / k.fy * 10.0,
+        10.0,
+    ];
+    let uv = cam_r.project(world).unwrap();
+    assert!(uv[0].abs() < 1e-9 && uv[1].abs() < 1e-9, "{uv:?}");
+}
+
+#[test]
+fn silhouettes_match_an_independent_ray_cast() {
+    let instrument = Instrument::kflex();
+    let camera = Camera::default();
+    let (x0, y0, side) = roi(
+        &camera,
+        &instrument,
+        &[-10.0, 0.0, 25.0, 50.0, 60.0],
+        &[5.0, 15.0],
+    );
+    let roi_camera = camera.with_intrinsics(
+        camera
+            .intrinsics
+            .region(x0, y0, side, side, 48, 48)
+            .unwrap(),
+    );
+    let hd = camera.with_intrinsics(Intrinsics::full_hd());
+    let mut worst = [1.0f64; 3];
+    for (theta, d) in [
+        (0.0, 5.0),
+        (25.0, 10.0),
+        (50.0, 15.0),
+        (-30.0, 8.0),
+        (90.0, 20.0),
+    ] {
+        let shape = instrument.shape(theta, d).unwrap();
+        for (i, cam) in [camera, roi_camera, hd].iter().enumerate() {
+            if i == 2 && theta != 25.0 {
+                continue; // one full-HD pose keeps the test quick
+            }
+            let ours = render(cam, &shape);
+            let reference = ray_cast(cam, &shape);
+            assert!(
+                reference.count() > 20,
+                "the instrument should be in view at θ={theta}, d={d}"
+            );
+            let iou = ours.iou(&reference).unwrap();
+            worst[i] = worst[i].min(iou);
+        }
+    }
+    eprintln!(
+        "worst IoU: 640x480 {:.4}, 48x48 ROI {:.4}, 1920x1080 {:.4}",
+        worst[0], worst[1], worst[2]
+    );
+    assert!(
+        worst.iter().all(|&w| w >= 0.98),
+        "IoU below 0.98: {worst:?}"
+    );
+}
+
+#[test]
+fn one_degree_changes_the_48px_silhouette_across_the_working_range() {
+    let instrument = Instrument::kflex();
+    let camera = Camera::default();
+    // the region the paper's working range (0–50 deg) covers at this translation
+    let (x0, y0, side) = roi(
+        &camera,
+        &instrument,
+        &[0.0, 10.0, 20.0, 30.0, 40.0, 51.0],
+        &[10.0],
+    );
+    let roi_camera = camera.with_intrinsics(
+        camera
+            .intrinsics
+            .region(x0, y0, side, side, 48, 48)
+            .unwrap(),
+    );
+    let mut fewest = usize::MAX;
+    for theta in 0..50 {
+        let a = render(
+            &roi_camera,
+            &instrument.shape(f64::from(theta), 10.0).unwrap(),
+        );
+        let b = render(
+            &roi_camera,
+            &instrument.shape(f64::from(theta) + 1.0, 10.0).unwrap(),
+        );
+        let differing = a
+            .data()
+            .iter()
+            .zip(b.data())
+            .filter(|(x, y)| x != y)
+            .count();
+        fewest = fewest.min(differing);
+        assert!(
+            differing > 0,
+            "θ = {theta} and {} give the same 48×48 silhouette",
+            theta + 1
+        );
+    }
+    eprintln!("fewest differing pixels between θ and θ+1 (48x48): {fewest}");
+}
+
+#[test]
+fn rendering_is_deterministic() {
+    let shape = Instrument::kflex().shape(33.0, 12.0).unwrap();
+    let camera = Camera::default();
+    assert_eq!(render(&camera, &shape), render(&camera, &shape));
+}
+
+#[test]
+fn bad_input_is_a_typed_error() {
+    let instrument = Instrument::kflex();
+    assert!(matches!(
+        instrument.shape(130.0, 5.0),
+        Err(ModelError::OutOfWorkspace {
+            name: "theta_deg",
+            ..
+        })
+    ));
+    assert!(matches!(
+        instrument.shape(10.0, 55.0),
+        Err(ModelError::OutOfWorkspace {
+            name: "translation_mm",
+            ..
+        })
+    ));
+    assert!(matches!(
+        instrument.shape(f64::NAN, 5.0),
+        Err(ModelError::NonFinite { .. })
+    ));
+    assert!(Mask::new(0, 10).is_err());
+    assert!(matches!(
+        Mask::from_raw(4, 4, vec![0; 15]),
+        Err(ModelError::ImageSize {
+            expected: 16,
+            got: 15,
+            ..
+        })
+    ));
+    let mut wrong = Mask::new(10, 10).unwrap();
+    let shape = instrument.shape(10.0, 5.0).unwrap();
+    assert!(
+        Rasterizer::new()
+            .silhouette(&Camera::default(), &shape, &mut wrong)
+            .is_err()
+    );
+    assert!(
+        Mask::new(3, 3)
+            .unwrap()
+            .iou(&Mask::new(4, 3).unwrap())
+            .is_err()
+    );
+    assert!(Intrinsics::from_fov(0, 480, 90.0).is_err());
+    assert!(Intrinsics::from_fov(640, 480, 180.0).is_err());
+}
