@@ -7,7 +7,7 @@
 use nalgebra::{Isometry3, Point3};
 use serde::{Deserialize, Serialize};
 
-use crate::error::{ModelError, Result, open_range};
+use crate::error::{Result, open_range};
 
 /// Intrinsics of a pinhole camera, pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -71,13 +71,7 @@ impl Intrinsics {
 
     /// Checks sizes and focal lengths.
     pub fn validate(&self) -> Result<()> {
-        if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
-            return Err(ModelError::InvalidParameter {
-                name: "image size",
-                value: f64::from(self.width.min(self.height)),
-                range: "[1, 16384] px in each dimension".into(),
-            });
-        }
+        crate::error::image_size(self.width, self.height)?;
         open_range("fx", self.fx, 0.0, 1e6)?;
         open_range("fy", self.fy, 0.0, 1e6)?;
         crate::error::finite("cx", self.cx)?;

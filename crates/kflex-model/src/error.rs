@@ -109,3 +109,15 @@ pub(crate) fn closed_range(name: &'static str, value: f64, lo: f64, hi: f64) -> 
         })
     }
 }
+
+/// Checks an image size: each dimension in `[1, 16384]` px.
+pub(crate) fn image_size(width: u32, height: u32) -> Result<()> {
+    if width == 0 || height == 0 || width > 16384 || height > 16384 {
+        return Err(ModelError::InvalidParameter {
+            name: "image size",
+            value: f64::from(width.min(height)),
+            range: "[1, 16384] px in each dimension".into(),
+        });
+    }
+    Ok(())
+}

@@ -28,7 +28,7 @@ pub struct Mask {
 impl Mask {
     /// An empty mask. Zero width or height is an error.
     pub fn new(width: u32, height: u32) -> Result<Self> {
-        check_size(width, height)?;
+        crate::error::image_size(width, height)?;
         Ok(Self {
             width,
             height,
@@ -38,7 +38,7 @@ impl Mask {
 
     /// A mask over `data` (row-major, non-zero = set); its length must be `width × height`.
     pub fn from_raw(width: u32, height: u32, data: Vec<u8>) -> Result<Self> {
-        check_size(width, height)?;
+        crate::error::image_size(width, height)?;
         let expected = width as usize * height as usize;
         if data.len() != expected {
             return Err(ModelError::ImageSize {
@@ -112,17 +112,6 @@ impl Mask {
     fn set(&mut self, x: usize, y: usize) {
         self.data[y * self.width as usize + x] = 1;
     }
-}
-
-fn check_size(width: u32, height: u32) -> Result<()> {
-    if width == 0 || height == 0 || width > 16384 || height > 16384 {
-        return Err(ModelError::InvalidParameter {
-            name: "image size",
-            value: f64::from(width.min(height)),
-            range: "[1, 16384] px in each dimension".into(),
-        });
-    }
-    Ok(())
 }
 
 /// Reusable rasterizer state.

@@ -1,10 +1,23 @@
 //! Behaviour of the whole plant: joint models agree, determinism, bad input.
 
 use kflex_model::{
-    AuroraNoise, Command, JointModelKind, JointParams, ModelError, Plant, PlantConfig,
+    AuroraNoise, Command, JointModelKind, JointParams, ModelError, Plant, PlantConfig, PlantState,
     SheathParams, Trajectory,
 };
 use proptest::prelude::*;
+
+/// Steps `plant` for k = 1..=n with θ_c = theta(k) deg at translation 0, returns the last state.
+fn ramp(plant: &mut Plant, n: u32, dt: f64, theta: impl Fn(f64) -> f64) -> PlantState {
+    let mut last = *plant.state();
+    for k in 1..=n {
+        let command = Command {
+            theta_deg: theta(f64::from(k)),
+            translation_mm: 0.0,
+        };
+        last = plant.step(command, dt).unwrap();
+    }
+    last
+}
 
 fn drive(config: PlantConfig, seconds: f64, dt: f64) -> Vec<f64> {
     let mut plant = Plant::new(config).unwrap();
@@ -86,20 +99,7 @@ fn rapier_gravity_and_tip_load_bend_the_joint_as_the_analytic_model_does() {
             ..PlantConfig::default()
         })
         .unwrap();
-        let mut theta = 0.0;
-        for k in 1..=100 {
-            theta = plant
-                .step(
-                    Command {
-                        theta_deg: 0.3 * f64::from(k),
-                        translation_mm: 0.0,
-                    },
-                    0.02,
-                )
-                .unwrap()
-                .theta_deg;
-        }
-        theta
+        ramp(&mut plant, 100, 0.02, |k| 0.3 * k).theta_deg
     };
     for model in [JointModelKind::Analytic, JointModelKind::Rapier] {
         let drop = settle(unloaded, model) - settle(joint, model);
@@ -520,32 +520,8 @@ fn sheath_friction_develops_and_reverses_with_the_motion() {
         ..PlantConfig::default()
     })
     .unwrap();
-    let mut z_up = 0.0;
-    for k in 1..=300 {
-        z_up = plant
-            .step(
-                Command {
-                    theta_deg: 0.15 * f64::from(k),
-                    translation_mm: 0.0,
-                },
-                0.01,
-            )
-            .unwrap()
-            .friction_state;
-    }
-    let mut z_down = 0.0;
-    for k in 1..=300 {
-        z_down = plant
-            .step(
-                Command {
-                    theta_deg: 45.0 - 0.15 * f64::from(k),
-                    translation_mm: 0.0,
-                },
-                0.01,
-            )
-            .unwrap()
-            .friction_state;
-    }
+    let z_up = ramp(&mut plant, 300, 0.01, |k| 0.15 * k).friction_state;
+    let z_down = ramp(&mut plant, 300, 0.01, |k| 45.0 - 0.15 * k).friction_state;
     assert!(z_up > 0.5 && z_down < -0.5, "z up {z_up}, down {z_down}");
 }
 
