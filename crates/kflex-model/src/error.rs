@@ -64,6 +64,12 @@ pub enum ModelError {
         /// Pixels it has.
         got: usize,
     },
+    /// A background name that is not one of colon, stomach, larynx.
+    #[error("unknown background {name:?}: expected colon, stomach or larynx")]
+    UnknownBackground {
+        /// The name given.
+        name: String,
+    },
     /// The physics engine produced a state that is not finite; the plant keeps its last good state.
     #[error("the joint simulation diverged ({what}); the plant state was left unchanged")]
     Diverged {

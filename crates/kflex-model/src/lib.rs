@@ -29,6 +29,7 @@ pub mod kinematics;
 pub mod numeric;
 pub mod plant;
 pub mod raster;
+pub mod scene;
 pub mod trajectory;
 pub mod transmission;
 

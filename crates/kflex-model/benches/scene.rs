@@ -1,0 +1,39 @@
+//! Shaded frame throughput. `cargo bench -p kflex-model --bench scene`
+//! Goal (issue 3): ≥ 200 shaded 640×480 frames per second on one core.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use kflex_model::camera::Camera;
+use kflex_model::instrument::Instrument;
+use kflex_model::scene::{FrameParams, Occlusion, SceneRenderer};
+
+fn frames(c: &mut Criterion) {
+    let instrument = Instrument::kflex();
+    let camera = Camera::default();
+    let mut renderer = SceneRenderer::new();
+    let mut theta = 0.0;
+    let params = FrameParams {
+        occlusion: Some(Occlusion {
+            fraction: 0.4,
+            position: 1.0,
+        }),
+        ..FrameParams::default()
+    };
+    c.bench_function("shaded_640x480", |b| {
+        b.iter(|| {
+            theta = (theta + 0.37) % 50.0;
+            let shape = instrument.shape(theta, 10.0).expect("shape");
+            black_box(
+                renderer
+                    .render(&camera, &shape, &params)
+                    .expect("frame")
+                    .rgb
+                    .len(),
+            )
+        })
+    });
+}
+
+criterion_group!(benches, frames);
+criterion_main!(benches);

@@ -1,0 +1,178 @@
+//! Shaded frames: determinism, distinct backgrounds, the tape's area and place,
+//! masks consistent with the silhouette, bad input.
+
+use kflex_model::ModelError;
+use kflex_model::camera::{Camera, Intrinsics};
+use kflex_model::instrument::Instrument;
+use kflex_model::raster::{Mask, Rasterizer};
+use kflex_model::scene::{Background, FrameParams, Occlusion, SceneRenderer};
+
+fn frame(params: FrameParams) -> kflex_model::scene::Frame {
+    let shape = Instrument::kflex().shape(30.0, 10.0).unwrap();
+    SceneRenderer::new()
+        .render(&Camera::default(), &shape, &params)
+        .unwrap()
+}
+
+#[test]
+fn frames_are_deterministic_from_the_seed() {
+    let p = FrameParams {
+        seed: 3,
+        ..FrameParams::default()
+    };
+    assert_eq!(frame(p).rgb, frame(p).rgb);
+    assert_ne!(frame(p).rgb, frame(FrameParams { seed: 4, ..p }).rgb);
+}
+
+#[test]
+fn the_three_backgrounds_look_different() {
+    let mean = |bg| {
+        let f = frame(FrameParams {
+            background: bg,
+            noise_std: 0.0,
+            ..FrameParams::default()
+        });
+        let mut m = [0.0f64; 3];
+        for px in f.rgb.chunks(3) {
+            for ch in 0..3 {
+                m[ch] += f64::from(px[ch]);
+            }
+        }
+        m.map(|v| v / (f.rgb.len() / 3) as f64)
+    };
+    let means: Vec<[f64; 3]> = Background::ALL.iter().map(|&b| mean(b)).collect();
+    for i in 0..3 {
+        for j in i + 1..3 {
+            let d = (0..3)
+                .map(|c| (means[i][c] - means[j][c]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(
+                d > 20.0,
+                "{:?} vs {:?}: mean colours only {d:.1} apart",
+                Background::ALL[i],
+                Background::ALL[j]
+            );
+        }
+    }
+}
+
+#[test]
+fn tape_covers_the_requested_share_where_asked() {
+    let camera = Camera::default();
+    let shape = Instrument::kflex().shape(30.0, 10.0).unwrap();
+    let mut silhouette = Mask::new(640, 480).unwrap();
+    Rasterizer::new()
+        .silhouette(&camera, &shape, &mut silhouette)
+        .unwrap();
+    // the end of the last link (the tool's base), safely inside the instrument's silhouette
+    let near_tip = {
+        let last = shape
+            .capsules
+            .iter()
+            .rfind(|c| matches!(c.part, kflex_model::Part::Link(_)))
+            .unwrap();
+        camera.project(last.b).unwrap()
+    };
+    for (fraction, position) in [(0.2, 0.5), (0.4, 0.5), (0.4, 1.0), (0.4, 0.0), (0.7, 0.3)] {
+        let f = frame(FrameParams {
+            occlusion: Some(Occlusion { fraction, position }),
+            ..FrameParams::default()
+        });
+        let (taped, visible) = (f.occluder.count(), f.instrument.count());
+        let share = taped as f64 / (taped + visible) as f64;
+        assert!(
+            (share - fraction).abs() < 0.02,
+            "asked {fraction}, got {share:.3}"
+        );
+        // masks partition the silhouette
+        assert_eq!(taped + visible, silhouette.count());
+        for (i, &s) in silhouette.data().iter().enumerate() {
+            assert_eq!(s, f.occluder.data()[i] | f.instrument.data()[i]);
+            assert_eq!(f.occluder.data()[i] & f.instrument.data()[i], 0);
+        }
+        let at_tip = f.occluder.get(near_tip[0] as u32, near_tip[1] as u32);
+        if position == 1.0 {
+            assert!(at_tip, "distal tape must cover the tip region");
+        }
+        if position == 0.0 {
+            assert!(!at_tip, "proximal tape must leave the tip free");
+        }
+    }
+    let clean = frame(FrameParams::default());
+    assert_eq!(clean.occluder.count(), 0);
+    assert_eq!(clean.instrument, silhouette);
+}
+
+#[test]
+fn illumination_gain_brightens_and_noise_perturbs() {
+    let base = FrameParams {
+        noise_std: 0.0,
+        ..FrameParams::default()
+    };
+    let sum = |f: &kflex_model::scene::Frame| f.rgb.iter().map(|&v| u64::from(v)).sum::<u64>();
+    let dim = frame(FrameParams {
+        illumination_gain: 0.6,
+        ..base
+    });
+    let bright = frame(FrameParams {
+        illumination_gain: 1.3,
+        ..base
+    });
+    assert!(sum(&bright) > sum(&dim) * 3 / 2);
+    let noisy = frame(FrameParams {
+        noise_std: 0.05,
+        ..base
+    });
+    let clean = frame(base);
+    let changed = noisy
+        .rgb
+        .iter()
+        .zip(&clean.rgb)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(changed > noisy.rgb.len() / 2);
+    let blurred = frame(FrameParams {
+        blur_px: 2.0,
+        ..base
+    });
+    assert_ne!(blurred.rgb, clean.rgb);
+}
+
+#[test]
+fn bad_input_is_a_typed_error() {
+    assert!(matches!(
+        "gut".parse::<Background>(),
+        Err(ModelError::UnknownBackground { .. })
+    ));
+    assert_eq!("Larynx".parse::<Background>().unwrap(), Background::Larynx);
+    let shape = Instrument::kflex().shape(10.0, 5.0).unwrap();
+    let mut r = SceneRenderer::new();
+    for bad in [
+        FrameParams {
+            noise_std: -0.1,
+            ..FrameParams::default()
+        },
+        FrameParams {
+            illumination_gain: f64::NAN,
+            ..FrameParams::default()
+        },
+        FrameParams {
+            occlusion: Some(Occlusion {
+                fraction: 1.5,
+                position: 0.5,
+            }),
+            ..FrameParams::default()
+        },
+    ] {
+        assert!(
+            r.render(&Camera::default(), &shape, &bad).is_err(),
+            "{bad:?}"
+        );
+    }
+    let zero = Camera::default().with_intrinsics(Intrinsics {
+        width: 0,
+        ..Intrinsics::default()
+    });
+    assert!(r.render(&zero, &shape, &FrameParams::default()).is_err());
+}
