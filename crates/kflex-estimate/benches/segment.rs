@@ -1,0 +1,42 @@
+//! Segmentation time. `cargo bench -p kflex-estimate --bench segment`
+//! Goals (issue 3): whole 640×480 frame ≤ 1 ms median, 1920×1080 ≤ 5 ms.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use kflex_estimate::{Roi, SegmentParams, segment};
+use kflex_model::camera::{Camera, Intrinsics};
+use kflex_model::instrument::Instrument;
+use kflex_model::scene::{FrameParams, SceneRenderer};
+
+fn bench(c: &mut Criterion) {
+    let shape = Instrument::kflex().shape(30.0, 10.0).expect("shape");
+    for (name, intrinsics) in [
+        ("segment_640x480", Intrinsics::default()),
+        ("segment_1920x1080", Intrinsics::full_hd()),
+    ] {
+        let camera = Camera::default().with_intrinsics(intrinsics);
+        let f = SceneRenderer::new()
+            .render(&camera, &shape, &FrameParams::default())
+            .expect("frame");
+        let roi = Roi {
+            x0: 0,
+            y0: 0,
+            width: f.width,
+            height: f.height,
+        };
+        c.bench_function(name, |b| {
+            b.iter(|| {
+                black_box(
+                    segment(&f.rgb, f.width, f.height, roi, &SegmentParams::default())
+                        .expect("segment")
+                        .small
+                        .count(),
+                )
+            })
+        });
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
