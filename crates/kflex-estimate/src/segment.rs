@@ -195,8 +195,8 @@ pub fn segment(
             parent[rb as usize] = ra;
             let (s, c) = (leaves[rb as usize].sum, leaves[rb as usize].count);
             let l = &mut leaves[ra as usize];
-            for ch in 0..3 {
-                l.sum[ch] += s[ch];
+            for (acc, add) in l.sum.iter_mut().zip(s) {
+                *acc += add;
             }
             l.count += c;
         }
