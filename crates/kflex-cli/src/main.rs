@@ -1,6 +1,7 @@
 //! `kflex-cli`: reproduce and extend the seed paper's experiments on the kflex testbed.
 
 mod paper;
+mod render;
 mod run;
 
 use std::process::ExitCode;
@@ -20,12 +21,15 @@ struct Cli {
 enum Command {
     /// Run the paper's hysteresis experiment and print our figures beside the paper's.
     Run(run::RunArgs),
+    /// Render one endoscope frame, its 48×48 silhouette, segmentation and masks as PNG.
+    Render(render::RenderArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run(args) => run::run(&args),
+        Command::Render(args) => render::render(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

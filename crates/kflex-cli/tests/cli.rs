@@ -179,3 +179,65 @@ fn config_file_changes_the_plant() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("friction_coefficient"));
 }
+
+#[test]
+fn render_writes_the_pngs_and_rejects_bad_input() {
+    let dir = scratch("render");
+    let d = dir.to_str().unwrap();
+    let out = kflex(&[
+        "render",
+        "--theta",
+        "30",
+        "--d",
+        "10",
+        "--background",
+        "stomach",
+        "--occlusion",
+        "0.4",
+        "--out",
+        d,
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("IoU"));
+    for name in [
+        "frame.png",
+        "silhouette_48.png",
+        "instrument_mask.png",
+        "occluder_mask.png",
+        "segmentation_48.png",
+    ] {
+        let bytes = std::fs::read(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(&bytes[1..4], b"PNG", "{name} is a PNG");
+    }
+    let leftovers = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .ends_with(".tmp.png")
+        })
+        .count();
+    assert_eq!(leftovers, 0);
+    for (args, needle) in [
+        (vec!["render", "--background", "gut", "--out", d], "gut"),
+        (vec!["render", "--theta", "150", "--out", d], "theta_deg"),
+        (vec!["render", "--d", "-5", "--out", d], "translation_mm"),
+        (
+            vec!["render", "--occlusion", "1.5", "--out", d],
+            "occlusion.fraction",
+        ),
+    ] {
+        let out = kflex(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && stderr.contains(needle),
+            "{args:?}: {stderr}"
+        );
+    }
+}

@@ -1,0 +1,154 @@
+//! `kflex-cli render`: one frame of the camera simulator, for a person to look at.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use kflex_estimate::{Roi, SegmentParams, segment};
+use kflex_model::camera::{Camera, Intrinsics};
+use kflex_model::instrument::Instrument;
+use kflex_model::raster::{Mask, Rasterizer};
+use kflex_model::scene::{Background, FrameParams, Occlusion, SceneRenderer};
+
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Bend θ, deg.
+    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
+    theta: f64,
+    /// Translation d out of the overtube, mm.
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+    d: f64,
+    /// Background: colon, stomach or larynx.
+    #[arg(long, default_value = "colon")]
+    background: String,
+    /// Share of the visible instrument covered by red tape (0 for none).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    occlusion: f64,
+    /// Where the tape sits along the instrument: 0 proximal … 1 ending at the tip (the paper's "distal").
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    occlusion_position: f64,
+    /// Seed of the background and the sensor noise.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Illumination gain.
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    gain: f64,
+    /// Sensor noise standard deviation on the [0, 1] image.
+    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
+    noise: f64,
+    /// Gaussian blur, px.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    blur: f64,
+    /// Render at 1920×1080 (the paper's camera) instead of 640×480.
+    #[arg(long)]
+    hd: bool,
+    /// Folder for the PNG files.
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+}
+
+pub fn render(args: &RenderArgs) -> Result<()> {
+    let background: Background = args.background.parse()?;
+    let intrinsics = if args.hd {
+        Intrinsics::full_hd()
+    } else {
+        Intrinsics::default()
+    };
+    let camera = Camera::default().with_intrinsics(intrinsics);
+    let shape = Instrument::kflex().shape(args.theta, args.d)?;
+    let occlusion = (args.occlusion != 0.0).then_some(Occlusion {
+        fraction: args.occlusion,
+        position: args.occlusion_position,
+    });
+    let params = FrameParams {
+        background,
+        seed: args.seed,
+        illumination_gain: args.gain,
+        noise_std: args.noise,
+        blur_px: args.blur,
+        occlusion,
+    };
+    let frame = SceneRenderer::new().render(&camera, &shape, &params)?;
+    // the working-area region of interest of the default camera, scaled with the image
+    let scale = f64::from(intrinsics.width) / 640.0;
+    let side = (220.0 * scale) as u32;
+    let roi = Roi {
+        x0: (220.0 * scale) as u32,
+        y0: (240.0 * scale) as u32,
+        width: side,
+        height: side,
+    };
+    let roi_camera = camera.with_intrinsics(intrinsics.region(
+        f64::from(roi.x0),
+        f64::from(roi.y0),
+        f64::from(side),
+        f64::from(side),
+        48,
+        48,
+    )?);
+    let mut silhouette = Mask::new(48, 48)?;
+    Rasterizer::new().silhouette(&roi_camera, &shape, &mut silhouette)?;
+
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let rgb = image::RgbImage::from_raw(frame.width, frame.height, frame.rgb.clone())
+        .context("frame buffer does not match its size")?;
+    save(&args.out, "frame.png", |p| rgb.save(p))?;
+    save_mask(&args.out, "silhouette_48.png", &silhouette)?;
+    save_mask(&args.out, "instrument_mask.png", &frame.instrument)?;
+    save_mask(&args.out, "occluder_mask.png", &frame.occluder)?;
+    match segment(
+        &frame.rgb,
+        frame.width,
+        frame.height,
+        roi,
+        &SegmentParams::default(),
+    ) {
+        Ok(seg) => {
+            save_mask(&args.out, "segmentation_roi.png", &seg.full)?;
+            save_mask(&args.out, "segmentation_48.png", &seg.small)?;
+            let truth = crop(&frame.instrument, roi)?;
+            println!(
+                "segmentation: IoU {:.3} with the visible instrument in the region of interest",
+                seg.full.iou(&truth)?
+            );
+        }
+        Err(e) => println!("segmentation: {e}"),
+    }
+    println!(
+        "wrote frame.png, silhouette_48.png, instrument_mask.png, occluder_mask.png and the segmentation to {}",
+        args.out.display()
+    );
+    Ok(())
+}
+
+fn crop(mask: &Mask, roi: Roi) -> Result<Mask> {
+    let mut data = Vec::with_capacity((roi.width * roi.height) as usize);
+    for y in roi.y0..roi.y0 + roi.height {
+        for x in roi.x0..roi.x0 + roi.width {
+            data.push(u8::from(mask.get(x, y)));
+        }
+    }
+    Ok(Mask::from_raw(roi.width, roi.height, data)?)
+}
+
+fn save_mask(dir: &Path, name: &str, mask: &Mask) -> Result<()> {
+    let img = image::GrayImage::from_raw(
+        mask.width(),
+        mask.height(),
+        mask.data().iter().map(|&v| v * 255).collect(),
+    )
+    .context("mask buffer does not match its size")?;
+    save(dir, name, |p| img.save(p))
+}
+
+/// Writes through a temporary file in the same folder, then renames: no half-written PNG.
+fn save(dir: &Path, name: &str, write: impl Fn(&Path) -> image::ImageResult<()>) -> Result<()> {
+    let path = dir.join(name);
+    let tmp = dir.join(format!(".{name}.tmp.png"));
+    if let Err(e) = write(&tmp) {
+        let _ = std::fs::remove_file(&tmp);
+        bail!("writing {}: {e}", path.display());
+    }
+    std::fs::rename(&tmp, &path).with_context(|| format!("writing {}", path.display()))
+}
