@@ -45,7 +45,7 @@ fmt:
 	$(CARGO) fmt --all
 
 bench:
-	$(CARGO) bench -p kflex-model --bench plant
+	$(CARGO) bench -p kflex-model -p kflex-estimate
 
 fit:
 	$(CARGO) run --release --locked -p kflex-control --example fit_calibration
