@@ -2,9 +2,11 @@
 //! split, merge, threshold — giving the 48×48 binary image IBJAE consumes.
 //!
 //! 1. **Region of interest**: a rectangle of the frame ([`Roi`]).
-//! 2. **Split**: a quadtree. A block is split in four while the range of its
-//!    brightness or of its redness exceeds [`SegmentParams::split_range`] and it
-//!    is larger than [`SegmentParams::min_block`] px.
+//! 2. **Split**: a quadtree of aligned power-of-two blocks. A block is split in
+//!    four while the range of its brightness or of its redness exceeds
+//!    [`SegmentParams::split_range`] and its side exceeds [`SegmentParams::min_block`]
+//!    px (at least 2). Block statistics come from a pyramid built bottom-up in one
+//!    pass, so the split is linear in the pixels.
 //! 3. **Merge**: adjacent leaves whose mean colours differ by less than
 //!    [`SegmentParams::merge_distance`] become one region (union–find over the
 //!    leaves' adjacency, on the regions' running means).
@@ -91,6 +93,43 @@ struct Leaf {
     count: u32,
 }
 
+/// Statistics of a block: brightness and redness ranges, colour sum, pixel count.
+#[derive(Clone, Copy)]
+struct Block {
+    lo: [f32; 2],
+    hi: [f32; 2],
+    sum: [f32; 3],
+    count: u32,
+}
+
+impl Block {
+    const EMPTY: Block = Block {
+        lo: [f32::MAX; 2],
+        hi: [f32::MIN; 2],
+        sum: [0.0; 3],
+        count: 0,
+    };
+
+    fn add_pixel(&mut self, c: [f32; 3]) {
+        let f = [(c[0] + c[1] + c[2]) / 3.0, c[0] - 0.5 * (c[1] + c[2])];
+        self.lo = [self.lo[0].min(f[0]), self.lo[1].min(f[1])];
+        self.hi = [self.hi[0].max(f[0]), self.hi[1].max(f[1])];
+        self.sum = [self.sum[0] + c[0], self.sum[1] + c[1], self.sum[2] + c[2]];
+        self.count += 1;
+    }
+
+    fn absorb(&mut self, o: &Block) {
+        self.lo = [self.lo[0].min(o.lo[0]), self.lo[1].min(o.lo[1])];
+        self.hi = [self.hi[0].max(o.hi[0]), self.hi[1].max(o.hi[1])];
+        self.sum = [
+            self.sum[0] + o.sum[0],
+            self.sum[1] + o.sum[1],
+            self.sum[2] + o.sum[2],
+        ];
+        self.count += o.count;
+    }
+}
+
 /// Segments the instrument in `roi` of an RGB frame (`width × height`, 8 bits, row-major).
 pub fn segment(
     rgb: &[u8],
@@ -127,50 +166,69 @@ pub fn segment(
         });
     }
     let (rw, rh) = (roi.width as usize, roi.height as usize);
-    let px = |x: usize, y: usize| -> [f32; 3] {
-        let i = 3 * ((roi.y0 as usize + y) * width as usize + roi.x0 as usize + x);
-        [
-            f32::from(rgb[i]) / 255.0,
-            f32::from(rgb[i + 1]) / 255.0,
-            f32::from(rgb[i + 2]) / 255.0,
-        ]
-    };
-    // split: quadtree leaves, each labelling its pixels
-    let mut labels = vec![0u32; rw * rh];
-    let mut leaves: Vec<Leaf> = Vec::new();
-    let mut stack = vec![(0usize, 0usize, rw, rh)];
-    while let Some((x, y, w, h)) = stack.pop() {
-        let (mut lo, mut hi) = ([f32::MAX; 2], [f32::MIN; 2]);
-        let mut sum = [0.0f32; 3];
-        for yy in y..y + h {
-            for xx in x..x + w {
-                let c = px(xx, yy);
-                let bright = (c[0] + c[1] + c[2]) / 3.0;
-                let red = c[0] - 0.5 * (c[1] + c[2]);
-                lo = [lo[0].min(bright), lo[1].min(red)];
-                hi = [hi[0].max(bright), hi[1].max(red)];
-                for ch in 0..3 {
-                    sum[ch] += c[ch];
-                }
+    // split: a quadtree of aligned power-of-two blocks. Statistics of every block
+    // come from a pyramid built bottom-up in one pass (2×2 blocks from the pixels,
+    // each level from the one below), so the split costs O(pixels), not O(pixels · depth).
+    let mut levels: Vec<(usize, usize, Vec<Block>)> = Vec::new(); // (columns, rows, blocks)
+    {
+        let (cols, rows) = (rw.div_ceil(2), rh.div_ceil(2));
+        let mut base = vec![Block::EMPTY; cols * rows];
+        for y in 0..rh {
+            let row = 3 * ((roi.y0 as usize + y) * width as usize + roi.x0 as usize);
+            let brow = (y / 2) * cols;
+            for (x, c) in rgb[row..row + 3 * rw].chunks_exact(3).enumerate() {
+                base[brow + x / 2].add_pixel([
+                    f32::from(c[0]) / 255.0,
+                    f32::from(c[1]) / 255.0,
+                    f32::from(c[2]) / 255.0,
+                ]);
             }
         }
-        let uniform = hi[0] - lo[0] <= params.split_range && hi[1] - lo[1] <= params.split_range;
-        let small = w <= params.min_block as usize || h <= params.min_block as usize;
-        if uniform || small {
+        levels.push((cols, rows, base));
+        while let Some((pc, pr, prev)) = levels.last().filter(|l| l.0 > 1 || l.1 > 1) {
+            let (pc, pr) = (*pc, *pr);
+            let (cols, rows) = (pc.div_ceil(2), pr.div_ceil(2));
+            let mut next = vec![Block::EMPTY; cols * rows];
+            for y in 0..pr {
+                for x in 0..pc {
+                    next[(y / 2) * cols + x / 2].absorb(&prev[y * pc + x]);
+                }
+            }
+            levels.push((cols, rows, next));
+        }
+    }
+    let mut labels = vec![0u32; rw * rh];
+    let mut leaves: Vec<Leaf> = Vec::new();
+    let top = levels.len() - 1;
+    let mut stack = vec![(top, 0usize, 0usize)];
+    while let Some((level, bx, by)) = stack.pop() {
+        let (cols, _, blocks) = &levels[level];
+        let b = &blocks[by * cols + bx];
+        if b.count == 0 {
+            continue;
+        }
+        let uniform =
+            b.hi[0] - b.lo[0] <= params.split_range && b.hi[1] - b.lo[1] <= params.split_range;
+        let side = 2usize << level; // pixels per block side at this level
+        if uniform || side <= params.min_block.max(2) as usize || level == 0 {
             let id = leaves.len() as u32;
             leaves.push(Leaf {
-                sum,
-                count: (w * h) as u32,
+                sum: b.sum,
+                count: b.count,
             });
-            for yy in y..y + h {
-                labels[yy * rw + x..yy * rw + x + w].fill(id);
+            let (x0, y0) = (bx * side, by * side);
+            let (x1, y1) = ((x0 + side).min(rw), (y0 + side).min(rh));
+            for yy in y0..y1 {
+                labels[yy * rw + x0..yy * rw + x1].fill(id);
             }
         } else {
-            let (w0, h0) = (w / 2, h / 2);
-            stack.push((x, y, w0, h0));
-            stack.push((x + w0, y, w - w0, h0));
-            stack.push((x, y + h0, w0, h - h0));
-            stack.push((x + w0, y + h0, w - w0, h - h0));
+            let (cc, cr, _) = &levels[level - 1];
+            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                let (cx, cy) = (2 * bx + dx, 2 * by + dy);
+                if cx < *cc && cy < *cr {
+                    stack.push((level - 1, cx, cy));
+                }
+            }
         }
     }
     // merge: union–find over adjacent leaves with similar means
