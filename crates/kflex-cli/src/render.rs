@@ -107,7 +107,9 @@ pub fn render(args: &RenderArgs) -> Result<()> {
         Ok(seg) => {
             save_mask(&args.out, "segmentation_roi.png", &seg.full)?;
             save_mask(&args.out, "segmentation_48.png", &seg.small)?;
-            let truth = crop(&frame.instrument, roi)?;
+            let truth = frame
+                .instrument
+                .crop(roi.x0, roi.y0, roi.width, roi.height)?;
             println!(
                 "segmentation: IoU {:.3} with the visible instrument in the region of interest",
                 seg.full.iou(&truth)?
@@ -120,16 +122,6 @@ pub fn render(args: &RenderArgs) -> Result<()> {
         args.out.display()
     );
     Ok(())
-}
-
-fn crop(mask: &Mask, roi: Roi) -> Result<Mask> {
-    let mut data = Vec::with_capacity((roi.width * roi.height) as usize);
-    for y in roi.y0..roi.y0 + roi.height {
-        for x in roi.x0..roi.x0 + roi.width {
-            data.push(u8::from(mask.get(x, y)));
-        }
-    }
-    Ok(Mask::from_raw(roi.width, roi.height, data)?)
 }
 
 fn save_mask(dir: &Path, name: &str, mask: &Mask) -> Result<()> {

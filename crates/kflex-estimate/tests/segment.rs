@@ -14,13 +14,7 @@ const ROI: Roi = Roi {
 };
 
 fn crop(mask: &Mask, roi: Roi) -> Mask {
-    let mut data = Vec::with_capacity((roi.width * roi.height) as usize);
-    for y in roi.y0..roi.y0 + roi.height {
-        for x in roi.x0..roi.x0 + roi.width {
-            data.push(u8::from(mask.get(x, y)));
-        }
-    }
-    Mask::from_raw(roi.width, roi.height, data).unwrap()
+    mask.crop(roi.x0, roi.y0, roi.width, roi.height).unwrap()
 }
 
 fn render(theta: f64, params: FrameParams) -> Frame {

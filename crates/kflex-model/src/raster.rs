@@ -81,6 +81,30 @@ impl Mask {
         self.data.iter().filter(|&&v| v != 0).count()
     }
 
+    /// The `width × height` window whose top-left pixel is `(x0, y0)`; it must lie inside.
+    pub fn crop(&self, x0: u32, y0: u32, width: u32, height: u32) -> Result<Mask> {
+        crate::error::image_size(width, height)?;
+        if u64::from(x0) + u64::from(width) > u64::from(self.width)
+            || u64::from(y0) + u64::from(height) > u64::from(self.height)
+        {
+            return Err(ModelError::InvalidParameter {
+                name: "crop window end",
+                value: f64::from(x0.saturating_add(width).max(y0.saturating_add(height))),
+                range: format!("a window inside {}×{}", self.width, self.height),
+            });
+        }
+        let mut data = Vec::with_capacity(width as usize * height as usize);
+        for y in y0..y0 + height {
+            let row = (y * self.width + x0) as usize;
+            data.extend_from_slice(&self.data[row..row + width as usize]);
+        }
+        Ok(Mask {
+            width,
+            height,
+            data,
+        })
+    }
+
     /// Clears every pixel.
     pub fn clear(&mut self) {
         self.data.fill(0);

@@ -247,6 +247,13 @@ fn bad_input_is_a_typed_error() {
             .iou(&Mask::new(4, 3).unwrap())
             .is_err()
     );
+    let m = Mask::from_raw(3, 2, vec![1, 0, 1, 0, 1, 1]).unwrap();
+    assert_eq!(
+        m.crop(1, 0, 2, 2).unwrap(),
+        Mask::from_raw(2, 2, vec![0, 1, 1, 1]).unwrap()
+    );
+    assert!(m.crop(2, 0, 2, 1).is_err(), "window past the right edge");
+    assert!(m.crop(0, 0, 0, 1).is_err(), "empty window");
     assert!(Intrinsics::from_fov(0, 480, 90.0).is_err());
     assert!(Intrinsics::from_fov(640, 480, 180.0).is_err());
 }
