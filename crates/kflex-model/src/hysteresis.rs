@@ -105,20 +105,6 @@ impl BoucWen {
         })
     }
 
-    /// The same operator with RK4 sub-steps of `fraction` of the saturation
-    /// length (default [`BoucWen::MAX_SUBSTEP_FRACTION`]): coarser is faster and
-    /// less exact (RK4: error ∝ fraction⁴). `fraction` must lie in (0, 1].
-    pub fn with_substep_fraction(mut self, fraction: f64) -> Result<Self> {
-        open_range(
-            "bouc_wen substep fraction",
-            fraction,
-            0.0,
-            1.0 + f64::EPSILON,
-        )?;
-        self.max_substep = fraction * self.params.z_bound() / self.params.a;
-        Ok(self)
-    }
-
     /// Parameters.
     pub fn params(&self) -> &BoucWenParams {
         &self.params
@@ -139,15 +125,6 @@ impl BoucWen {
         self.params.alpha * self.x + (1.0 - self.params.alpha) * self.z
     }
 
-    /// Sets input and state, `z` clamped to the bound (to carry a state over to new parameters).
-    pub fn set_state(&mut self, x: f64, z: f64) {
-        let bound = self.params.z_bound();
-        if x.is_finite() && z.is_finite() {
-            self.x = x;
-            self.z = z.clamp(-bound, bound);
-        }
-    }
-
     /// Resets to input `x0`, `z = 0`.
     pub fn reset(&mut self, x0: f64) {
         self.x = x0;
@@ -163,9 +140,9 @@ impl BoucWen {
         Ok(self.output())
     }
 
-    /// The state `z` the operator would have after moving to `x`, without moving it
-    /// (for solvers that try inputs before committing one). Non-finite `x` gives the current `z`.
-    pub fn peek(&self, x: f64) -> f64 {
+    /// The state `z` after moving to `x` from the current state (the current `z`
+    /// for a non-finite `x`).
+    fn peek(&self, x: f64) -> f64 {
         let dx = x - self.x;
         if dx == 0.0 || !dx.is_finite() {
             self.z
@@ -177,7 +154,7 @@ impl BoucWen {
     }
 
     /// `dz/dx` at state `z` for motion in direction `sign` (±1).
-    pub fn slope(&self, z: f64, sign: f64) -> f64 {
+    fn slope(&self, z: f64, sign: f64) -> f64 {
         let p = &self.params;
         let zn = if p.n.fract() == 0.0 {
             z.abs().powi(p.n as i32)

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, closed_range, open_range};
 use crate::kinematics::TendonGeometry;
-use crate::transmission::TendonSheath;
+use crate::transmission::{Distal, TendonSheath};
 
 /// Which joint model the plant uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -152,6 +152,14 @@ pub fn external_generalised_force(joint: &JointParams, two_n: usize, theta: f64)
     total / two_n as f64
 }
 
+/// Moment of the tendon pair on one rolling contact at angle `phi` (rad), N·mm:
+/// `F d_t cos φ − (T_a + T_b)(R − B) sin φ` (virtual work on Eq. 1).
+pub(crate) fn contact_moment(geometry: &TendonGeometry, distal: &Distal, phi: f64) -> f64 {
+    let (s, c) = phi.sin_cos();
+    distal.force_n * geometry.tendon_offset_mm * c
+        - distal.tension_sum_n * (geometry.r_mm - geometry.b_mm) * s
+}
+
 /// Residual of the generalised-force balance along θ (N·mm/rad), equal contact angles.
 fn balance(
     geometry: &TendonGeometry,
@@ -168,7 +176,7 @@ fn balance(
     let (f, t_sum) = (distal.force_n, distal.tension_sum_n);
     let rb = geometry.r_mm - geometry.b_mm;
     let k = joint.contact_stiffness_nmm_per_rad;
-    let residual = f * arm - t_sum * rb * s - k * phi
+    let residual = contact_moment(geometry, &distal, phi) - k * phi
         + external_generalised_force(joint, two_n as usize, theta);
     // slope, neglecting the slow variation of the external loads
     let slope = distal.slope_n_per_mm * arm * arm

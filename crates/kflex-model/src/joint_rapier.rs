@@ -182,25 +182,42 @@ impl RapierJoint {
         }
     }
 
+    /// Reads the contact angles φ_j (rad) into `out`; returns how many there are.
+    fn read_angles(&self, out: &mut [f64; crate::joint::MAX_CONTACTS]) -> usize {
+        let n = self.handles.len().min(crate::joint::MAX_CONTACTS);
+        for (slot, &jh) in out.iter_mut().zip(&self.handles) {
+            *slot = self
+                .world
+                .multibody_joints
+                .get(jh)
+                .and_then(|(mb, id)| {
+                    mb.link(id)
+                        .map(|l| f64::from(l.joint().coords()[FREE_ANGLE]))
+                })
+                .unwrap_or(0.0);
+        }
+        n
+    }
+
     /// Contact angles φ_j, rad.
     pub fn contact_angles(&self) -> Vec<f64> {
-        self.handles
-            .iter()
-            .filter_map(|&jh| {
-                let (mb, id) = self.world.multibody_joints.get(jh)?;
-                Some(f64::from(mb.link(id)?.joint().coords()[FREE_ANGLE]))
-            })
-            .collect()
+        let mut phis = [0.0; crate::joint::MAX_CONTACTS];
+        let n = self.read_angles(&mut phis);
+        phis[..n].to_vec()
     }
 
     /// Total bend θ = Σ φ_j, rad.
     pub fn theta(&self) -> f64 {
-        self.contact_angles().iter().sum()
+        let mut phis = [0.0; crate::joint::MAX_CONTACTS];
+        let n = self.read_angles(&mut phis);
+        phis[..n].iter().sum()
     }
 
     /// Distal differential stroke `p = Σ d_t sin φ_j`, mm.
     pub fn distal_stroke_mm(&self) -> f64 {
-        self.contact_angles()
+        let mut phis = [0.0; crate::joint::MAX_CONTACTS];
+        let n = self.read_angles(&mut phis);
+        phis[..n]
             .iter()
             .map(|phi| self.geometry.tendon_offset_mm * phi.sin())
             .sum()
@@ -213,7 +230,6 @@ impl RapierJoint {
 
     /// Integrates until the chain is at rest under the current tendon state. Returns θ (rad).
     pub fn settle(&mut self, sheath: &TendonSheath) -> Result<f64> {
-        let rb = self.geometry.r_mm - self.geometry.b_mm;
         let d_t = self.geometry.tendon_offset_mm;
         let tip_force = v3(self.joint.tip_load_n);
         let tip_local = RVec::new(
@@ -225,22 +241,9 @@ impl RapierJoint {
         let n = self.links.len().min(crate::joint::MAX_CONTACTS);
         for step in 0..self.settings.max_steps_per_tick {
             // current contact angles and the tendon force they imply
-            let mut p = 0.0;
-            for (i, &jh) in self.handles.iter().enumerate().take(n) {
-                let phi = self
-                    .world
-                    .multibody_joints
-                    .get(jh)
-                    .and_then(|(mb, id)| {
-                        mb.link(id)
-                            .map(|l| f64::from(l.joint().coords()[FREE_ANGLE]))
-                    })
-                    .unwrap_or(0.0);
-                phis[i] = phi;
-                p += d_t * phi.sin();
-            }
+            self.read_angles(&mut phis);
+            let p: f64 = phis[..n].iter().map(|phi| d_t * phi.sin()).sum();
             let distal = sheath.distal(p);
-            let (f, t_sum) = (distal.force_n, distal.tension_sum_n);
             for b in &self.links {
                 if let Some(body) = self.world.bodies.get_mut(*b) {
                     body.reset_forces(false);
@@ -248,7 +251,7 @@ impl RapierJoint {
                 }
             }
             for (i, phi) in phis.iter().enumerate().take(n) {
-                let tau = (f * d_t * phi.cos() - t_sum * rb * phi.sin()) * 1e-3; // N·m
+                let tau = crate::joint::contact_moment(&self.geometry, &distal, *phi) * 1e-3; // N·m
                 let torque = RVec::new(0.0, tau as f32, 0.0);
                 if let Some(child) = self.world.bodies.get_mut(self.links[i]) {
                     child.add_torque(torque, true);

@@ -207,15 +207,6 @@ impl Plant {
     pub fn new(config: PlantConfig) -> Result<Self> {
         config.validate()?;
         let sheath = TendonSheath::new(config.sheath, config.sheath_deg)?;
-        let joint = match config.joint_model {
-            JointModelKind::Analytic => JointSolver::Analytic,
-            JointModelKind::Rapier => JointSolver::Rapier(Box::new(RapierJoint::new(
-                config.geometry,
-                config.joint,
-                &sheath,
-                RapierSettings::default(),
-            ))),
-        };
         let noise = match config.noise {
             Some(n) => Some((normal(n.theta_std_deg)?, normal(n.translation_std_mm)?)),
             None => None,
@@ -223,7 +214,7 @@ impl Plant {
         let mut plant = Self {
             config,
             sheath,
-            joint,
+            joint: JointSolver::Analytic, // reset() builds the configured one
             rng: ChaCha8Rng::seed_from_u64(config.seed),
             noise,
             state: PlantState::default(),
@@ -253,14 +244,15 @@ impl Plant {
     /// Back to rest: straight joint, tendons unloaded, noise re-seeded.
     pub fn reset(&mut self) {
         self.sheath.reset(0.0);
-        if let JointSolver::Rapier(_) = self.joint {
-            self.joint = JointSolver::Rapier(Box::new(RapierJoint::new(
+        self.joint = match self.config.joint_model {
+            JointModelKind::Analytic => JointSolver::Analytic,
+            JointModelKind::Rapier => JointSolver::Rapier(Box::new(RapierJoint::new(
                 self.config.geometry,
                 self.config.joint,
                 &self.sheath,
                 RapierSettings::default(),
-            )));
-        }
+            ))),
+        };
         self.rng = ChaCha8Rng::seed_from_u64(self.config.seed);
         let t0 = self.config.sheath.pretension_n;
         let translation = self.config.translation.min_mm;
