@@ -148,3 +148,93 @@ fn no_instrument_and_bad_buffers_are_errors() {
     ));
     assert!(segment(&[], 0, 0, ROI, &SegmentParams::default()).is_err());
 }
+
+/// A `w × h` frame of red tissue holding a grey instrument rectangle
+/// `[x0, x1) × [y0, y1)`, and the rectangle's mask.
+fn rectangle_frame(w: u32, h: u32, (x0, x1): (u32, u32), (y0, y1): (u32, u32)) -> (Vec<u8>, Mask) {
+    let mut rgb = Vec::with_capacity((w * h * 3) as usize);
+    let mut mask = Vec::with_capacity((w * h) as usize);
+    for y in 0..h {
+        for x in 0..w {
+            let inside = (x0..x1).contains(&x) && (y0..y1).contains(&y);
+            rgb.extend_from_slice(if inside {
+                &[150, 152, 158]
+            } else {
+                &[180, 70, 60]
+            });
+            mask.push(u8::from(inside));
+        }
+    }
+    (rgb, Mask::from_raw(w, h, mask).unwrap())
+}
+
+#[test]
+fn rectangle_is_found_exactly_in_regions_of_any_shape() {
+    // odd and even sides, 1 px up; the region sits at an odd place in the frame
+    let mut sizes: Vec<(u32, u32)> = (1..=9).flat_map(|w| (1..=9).map(move |h| (w, h))).collect();
+    sizes.extend([(37, 23), (64, 48), (101, 77), (48, 130)]);
+    for (w, h) in sizes {
+        // the rectangle starts on a cell boundary of the region, so no cell is mixed
+        let (rx, ry) = (2 * w.div_ceil(4), 2 * h.div_ceil(4));
+        let (rx1, ry1) = (
+            (rx + 2 * w.div_ceil(3)).min(w),
+            (ry + 2 * h.div_ceil(3)).min(h),
+        );
+        let (fw, fh) = (w + 8, h + 10);
+        let roi = Roi {
+            x0: 3,
+            y0: 5,
+            width: w,
+            height: h,
+        };
+        let (rx, ry) = if rx >= w || ry >= h { (0, 0) } else { (rx, ry) };
+        let (rgb, mask) = rectangle_frame(
+            fw,
+            fh,
+            (roi.x0 + rx, roi.x0 + rx1),
+            (roi.y0 + ry, roi.y0 + ry1),
+        );
+        let seg = segment(&rgb, fw, fh, roi, &SegmentParams::default())
+            .unwrap_or_else(|e| panic!("{w}×{h}: {e}"));
+        assert_eq!(seg.full, crop(&mask, roi), "{w}×{h}");
+        assert_eq!((seg.small.width(), seg.small.height()), (48, 48));
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+    /// Any picture in any region: a mask of the region's size or "no instrument",
+    /// never a panic; the 48×48 image agrees with the full mask on the whole.
+    #[test]
+    fn any_picture_any_region(
+        w in 1u32..70,
+        h in 1u32..70,
+        x0 in 0u32..5,
+        y0 in 0u32..5,
+        seed in proptest::prelude::any::<u64>(),
+    ) {
+        let (fw, fh) = (w + x0, h + y0);
+        let mut state = seed | 1;
+        let rgb: Vec<u8> = (0..fw * fh * 3)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                // blotches of a few grey and red levels, not pure noise
+                [40u8, 150, 200, 90][(state >> 60) as usize % 4]
+            })
+            .collect();
+        let roi = Roi { x0, y0, width: w, height: h };
+        match segment(&rgb, fw, fh, roi, &SegmentParams::default()) {
+            Ok(seg) => {
+                proptest::prop_assert_eq!((seg.full.width(), seg.full.height()), (w, h));
+                let share = seg.full.count() as f64 / f64::from(w * h);
+                let small = seg.small.count() as f64 / (48.0 * 48.0);
+                proptest::prop_assert!((share - small).abs() <= 0.5 + 1e-9);
+            }
+            Err(EstimateError::NoInstrument { .. }) => {}
+            Err(e) => proptest::prop_assert!(false, "unexpected error {e}"),
+        }
+    }
+}
