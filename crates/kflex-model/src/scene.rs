@@ -134,10 +134,6 @@ pub struct SceneRenderer {
 /// What a cached background depends on: kind, seed, width, height.
 type BackgroundKey = (Background, u64, u32, u32);
 
-/// A capsule in the camera frame: ends, radius, index in the shape, and the pixel
-/// box `[u_min, u_max, v_min, v_max]` its projection can cover.
-type CameraCapsule = (Vector3<f64>, Vector3<f64>, f64, usize, [f64; 4]);
-
 /// Size of the table of standard-normal samples behind the sensor noise.
 const NORMALS: usize = 1 << 16;
 
@@ -145,23 +141,68 @@ const NORMALS: usize = 1 << 16;
 /// (a Gaussian per pixel and channel at a fraction of a sampler's cost), 8 bits.
 struct Sensor<'a> {
     normals: &'a [f32],
-    state: u64,
+    key: u64,
     gain: f32,
     sigma: f32,
 }
 
 impl Sensor<'_> {
-    fn pixel(&mut self, v: f32) -> u8 {
-        let n = if self.sigma > 0.0 {
-            self.state ^= self.state >> 12;
-            self.state ^= self.state << 25;
-            self.state ^= self.state >> 27;
-            self.sigma
-                * self.normals[(self.state.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 48) as usize]
+    /// 64 random bits for the group of four values from `group · 4` on: a
+    /// counter-based hash (SplitMix64's finaliser), so values need no order and
+    /// carry no dependency from one to the next.
+    #[inline(always)]
+    fn bits(&self, group: usize) -> u64 {
+        let mut z = self
+            .key
+            .wrapping_add((group as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Gaussian noise from 16 of `bits`, lane 0–3.
+    #[inline(always)]
+    fn noise(&self, bits: u64, lane: usize) -> f32 {
+        self.sigma * self.normals[((bits >> (16 * lane)) & 0xFFFF) as usize]
+    }
+
+    #[inline(always)]
+    fn quantise(&self, v: f32, noise: f32) -> u8 {
+        // v ≥ 0 after the clamp, so adding ½ and truncating rounds to nearest
+        ((v * self.gain + noise).clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+    }
+
+    /// Value `i` of the image (`3 · pixel + channel`) as the sensor reads it.
+    fn pixel(&self, i: usize, v: f32) -> u8 {
+        let noise = if self.sigma > 0.0 {
+            self.noise(self.bits(i / 4), i % 4)
         } else {
             0.0
         };
-        ((v * self.gain + n).clamp(0.0, 1.0) * 255.0).round() as u8
+        self.quantise(v, noise)
+    }
+
+    /// The whole image as the sensor reads it: `pixel(i, values[i])` for every `i`.
+    fn image(&self, values: &[f32]) -> Vec<u8> {
+        let mut out = vec![0u8; values.len()];
+        if self.sigma > 0.0 {
+            let mut groups = out.chunks_exact_mut(4).zip(values.chunks_exact(4));
+            for (g, (o, v)) in groups.by_ref().enumerate() {
+                let bits = self.bits(g);
+                for lane in 0..4 {
+                    o[lane] = self.quantise(v[lane], self.noise(bits, lane));
+                }
+            }
+        } else {
+            for (o, &v) in out.iter_mut().zip(values) {
+                *o = self.quantise(v, 0.0);
+            }
+        }
+        let tail = values.len() - values.len() % 4;
+        for i in tail..values.len() {
+            out[i] = self.pixel(i, values[i]);
+        }
+        out
     }
 }
 
@@ -205,35 +246,39 @@ impl SceneRenderer {
         let caps: Vec<CameraCapsule> = shape
             .capsules
             .iter()
-            .enumerate()
-            .map(|(i, c)| {
+            .map(|c| {
                 let a = (camera.camera_from_overtube * nalgebra::Point3::from(c.a)).coords;
                 let b = (camera.camera_from_overtube * nalgebra::Point3::from(c.b)).coords;
-                (a, b, c.radius, i, screen_box(camera, a, b, c.radius))
+                CameraCapsule::new(a, b, c.radius, screen_box(camera, a, b, c.radius))
             })
             .collect();
-        for y in 0..h {
-            for x in 0..w {
-                if !silhouette.get(x, y) {
-                    continue;
-                }
-                let d = camera.ray_direction(f64::from(x) + 0.5, f64::from(y) + 0.5);
+        for (y, row) in silhouette.data().chunks_exact(w as usize).enumerate() {
+            let py = y as f64 + 0.5;
+            // the capsules whose screen box meets this row
+            let row_caps: Vec<(usize, &CameraCapsule)> = caps
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| py >= c.screen[2] && py <= c.screen[3])
+                .collect();
+            for (x, _) in row.iter().enumerate().filter(|(_, v)| **v != 0) {
+                let px = x as f64 + 0.5;
+                let d = camera.ray_direction(px, py);
                 let dir = Vector3::new(d[0], d[1], d[2]).normalize();
-                let mut best: Option<(f64, Vector3<f64>, usize, f64)> = None;
-                let (px, py) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
-                for &(a, b, r, i, bx) in &caps {
-                    if px < bx[0] || px > bx[1] || py < bx[2] || py > bx[3] {
+                let mut best: Option<(f64, f64, usize)> = None;
+                for &(i, c) in &row_caps {
+                    if px < c.screen[0] || px > c.screen[1] {
                         continue;
                     }
-                    if let Some((t, n, u)) = ray_capsule(dir, a, b, r)
+                    if let Some((t, u)) = c.hit(&dir)
                         && best.is_none_or(|bst| t < bst.0)
                     {
-                        best = Some((t, n, i, u));
+                        best = Some((t, u, i));
                     }
                 }
-                let idx = (y * w + x) as usize;
+                let idx = y * w as usize + x;
                 let (shade, s) = match best {
-                    Some((t, n, i, u)) => {
+                    Some((t, u, i)) => {
+                        let n = caps[i].normal(&dir, t, u);
                         // light at the camera: Lambert plus a Blinn–Phong highlight, falling off with distance
                         let cos = (-n.dot(&dir)).max(0.0);
                         let falloff = (30.0 / t.max(5.0)).powi(2).min(1.6);
@@ -277,9 +322,9 @@ impl SceneRenderer {
                 .map(|_| Distribution::<f32>::sample(&StandardNormal, &mut rng))
                 .collect();
         }
-        let mut sensor = Sensor {
+        let sensor = Sensor {
             normals: &self.normals,
-            state: params.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1,
+            key: params.seed.wrapping_mul(0xD1B5_4A32_D192_ED03) ^ 0x006e_6f69_7365,
             gain: params.illumination_gain as f32,
             sigma: params.noise_std as f32,
         };
@@ -294,13 +339,13 @@ impl SceneRenderer {
                 img[3 * idx..3 * idx + 3].copy_from_slice(&c);
             }
             gaussian_blur(&mut img, w as usize, h as usize, params.blur_px);
-            img.iter().map(|&v| sensor.pixel(v)).collect()
+            sensor.image(&img)
         } else {
             // no blur: quantise the background straight from the cache, then the instrument over it
-            let mut rgb: Vec<u8> = background.iter().map(|&v| sensor.pixel(v)).collect();
+            let mut rgb = sensor.image(background);
             for &(idx, c) in &shaded {
                 for ch in 0..3 {
-                    rgb[3 * idx + ch] = sensor.pixel(c[ch]);
+                    rgb[3 * idx + ch] = sensor.pixel(3 * idx + ch, c[ch]);
                 }
             }
             rgb
@@ -360,61 +405,96 @@ fn tape_band(hits: &[(usize, f32, [f32; 3])], o: Occlusion) -> Option<(f32, f32)
         return None;
     }
     let mut s: Vec<f32> = hits.iter().map(|h| h.1).collect();
-    s.sort_by(f32::total_cmp);
     let n = s.len();
     let count = ((o.fraction * n as f64).round() as usize).min(n);
     if count == 0 {
         return None;
     }
     let start = (o.position * (n - count) as f64).round() as usize;
-    Some((s[start], s[start + count - 1]))
+    // the start-th and (start + count − 1)-th smallest, without a full sort
+    let (_, &mut lo, above) = s.select_nth_unstable_by(start, f32::total_cmp);
+    let hi = if count == 1 {
+        lo
+    } else {
+        *above.select_nth_unstable_by(count - 2, f32::total_cmp).1
+    };
+    Some((lo, hi))
 }
 
-/// Ray from the origin along unit `d` against the capsule `a`–`b` of radius `r`:
-/// distance, outward normal, and the axial parameter in [0, 1] of the hit.
-fn ray_capsule(
-    d: Vector3<f64>,
+/// A capsule in the camera frame, ready for rays from the camera centre.
+struct CameraCapsule {
     a: Vector3<f64>,
     b: Vector3<f64>,
-    r: f64,
-) -> Option<(f64, Vector3<f64>, f64)> {
-    let mut best: Option<(f64, Vector3<f64>, f64)> = None;
-    let ba = b - a;
-    let len2 = ba.norm_squared();
-    // cylinder part
-    if len2 > 1e-18 {
-        let axis = ba / len2.sqrt();
-        let oa = -a; // origin − a
-        let dp = d - axis * d.dot(&axis);
-        let op = oa - axis * oa.dot(&axis);
-        let qa = dp.norm_squared();
-        let qb = 2.0 * dp.dot(&op);
-        let qc = op.norm_squared() - r * r;
-        let disc = qb * qb - 4.0 * qa * qc;
-        if qa > 1e-18 && disc >= 0.0 {
-            let t = (-qb - disc.sqrt()) / (2.0 * qa);
-            if t > 0.0 {
-                let p = d * t;
-                let u = (p - a).dot(&ba) / len2;
-                if (0.0..=1.0).contains(&u) {
-                    let n = (p - (a + ba * u)).normalize();
-                    best = Some((t, n, u));
+    /// Unit axis from `a` to `b`, and the length.
+    axis: Vector3<f64>,
+    len: f64,
+    /// `a · axis`.
+    a_axis: f64,
+    /// The part of `−a` across the axis, and its squared length less `r²`.
+    across: Vector3<f64>,
+    across_c: f64,
+    /// `|a|² − r²` and `|b|² − r²`, for the end spheres.
+    ends: [f64; 2],
+    /// Pixel box `[u_min, u_max, v_min, v_max]` that holds its projection.
+    screen: [f64; 4],
+}
+
+impl CameraCapsule {
+    fn new(a: Vector3<f64>, b: Vector3<f64>, r: f64, screen: [f64; 4]) -> Self {
+        let ba = b - a;
+        let len = ba.norm();
+        let axis = if len > 1e-9 { ba / len } else { Vector3::z() };
+        let across = -a - axis * (-a).dot(&axis);
+        Self {
+            a,
+            b,
+            axis,
+            len,
+            a_axis: a.dot(&axis),
+            across,
+            across_c: across.norm_squared() - r * r,
+            ends: [a.norm_squared() - r * r, b.norm_squared() - r * r],
+            screen,
+        }
+    }
+
+    /// The first hit of the ray from the origin along unit `d`: its distance and
+    /// axial parameter in [0, 1].
+    #[inline]
+    fn hit(&self, d: &Vector3<f64>) -> Option<(f64, f64)> {
+        let mut best: Option<(f64, f64)> = None;
+        // cylinder: |d t − a|² across the axis = r², nearer root
+        if self.len > 1e-9 {
+            let da = d.dot(&self.axis);
+            let qa = 1.0 - da * da;
+            let qb = 2.0 * d.dot(&self.across);
+            let disc = qb * qb - 4.0 * qa * self.across_c;
+            if qa > 1e-18 && disc >= 0.0 {
+                let t = (-qb - disc.sqrt()) / (2.0 * qa);
+                let along = t * da - self.a_axis;
+                if t > 0.0 && (0.0..=self.len).contains(&along) {
+                    best = Some((t, along / self.len));
                 }
             }
         }
-    }
-    // end spheres
-    for (c, u) in [(a, 0.0), (b, 1.0)] {
-        let cd = c.dot(&d);
-        let disc = cd * cd - (c.norm_squared() - r * r);
-        if disc >= 0.0 {
-            let t = cd - disc.sqrt();
-            if t > 0.0 && best.is_none_or(|bst| t < bst.0) {
-                best = Some((t, (d * t - c).normalize(), u));
+        // end spheres
+        for (c, k, u) in [(&self.a, self.ends[0], 0.0), (&self.b, self.ends[1], 1.0)] {
+            let cd = c.dot(d);
+            let disc = cd * cd - k;
+            if disc >= 0.0 {
+                let t = cd - disc.sqrt();
+                if t > 0.0 && best.is_none_or(|bst| t < bst.0) {
+                    best = Some((t, u));
+                }
             }
         }
+        best
     }
-    best
+
+    /// Outward unit normal where the ray along `d` meets the surface at `t`, axial parameter `u`.
+    fn normal(&self, d: &Vector3<f64>, t: f64, u: f64) -> Vector3<f64> {
+        (d * t - (self.a + (self.b - self.a) * u)).normalize()
+    }
 }
 
 /// Separable Gaussian blur of an RGB f32 image in place.
@@ -584,4 +664,84 @@ fn background(kind: Background, seed: u64, w: u32, h: u32) -> Vec<f32> {
         }
     }
     img
+}
+
+#[cfg(test)]
+mod unit_tests {
+    use super::*;
+
+    /// Distance from `p` to the capsule `a`–`b` of radius `r` (negative inside).
+    fn capsule_distance(p: Vector3<f64>, a: Vector3<f64>, b: Vector3<f64>, r: f64) -> f64 {
+        let ba = b - a;
+        let u = ((p - a).dot(&ba) / ba.norm_squared()).clamp(0.0, 1.0);
+        (p - (a + ba * u)).norm() - r
+    }
+
+    /// The closed-form hit equals sphere tracing along the ray, over rays that
+    /// meet the cylinder, the end caps, or nothing.
+    #[test]
+    fn capsule_hit_matches_sphere_tracing() {
+        let (a, b, r) = (
+            Vector3::new(-3.0, 1.0, 30.0),
+            Vector3::new(4.0, -2.0, 45.0),
+            2.5,
+        );
+        let capsule = CameraCapsule::new(a, b, r, [0.0; 4]);
+        let (mut hits, mut misses) = (0, 0);
+        for i in 0..41 {
+            for j in 0..41 {
+                let d = Vector3::new(
+                    -0.3 + 0.015 * f64::from(i),
+                    -0.3 + 0.015 * f64::from(j),
+                    1.0,
+                )
+                .normalize();
+                let mut t = 0.0;
+                let traced = loop {
+                    let dist = capsule_distance(d * t, a, b, r);
+                    if dist < 1e-9 {
+                        break Some(t);
+                    }
+                    t += dist;
+                    if t > 200.0 {
+                        break None;
+                    }
+                };
+                match (capsule.hit(&d), traced) {
+                    (Some((t, u)), Some(traced)) => {
+                        hits += 1;
+                        assert!((t - traced).abs() < 1e-6, "t {t} vs {traced}");
+                        let n = capsule.normal(&d, t, u);
+                        // the normal points out of the surface, towards the camera side
+                        assert!((n.norm() - 1.0).abs() < 1e-9 && n.dot(&d) <= 1e-9);
+                        assert!(capsule_distance(d * t + n * 1e-3, a, b, r) > 0.0);
+                    }
+                    (None, None) => misses += 1,
+                    (got, want) => panic!("ray {d:?}: hit {got:?}, traced {want:?}"),
+                }
+            }
+        }
+        assert!(hits > 100 && misses > 100, "{hits} hits, {misses} misses");
+    }
+
+    /// The sensor reads a value the same whether alone or in a whole image.
+    #[test]
+    fn sensor_pixel_and_image_agree() {
+        let normals: Vec<f32> = (0..NORMALS)
+            .map(|i| (i as f32 / NORMALS as f32) - 0.5)
+            .collect();
+        for sigma in [0.0, 0.02] {
+            let sensor = Sensor {
+                normals: &normals,
+                key: 42,
+                gain: 1.1,
+                sigma,
+            };
+            let values: Vec<f32> = (0..1003).map(|i| (i as f32 * 0.37).sin().abs()).collect();
+            let image = sensor.image(&values);
+            for (i, &v) in values.iter().enumerate() {
+                assert_eq!(image[i], sensor.pixel(i, v), "value {i}");
+            }
+        }
+    }
 }

@@ -132,6 +132,35 @@ fn illumination_gain_brightens_and_noise_perturbs() {
         .filter(|(a, b)| a != b)
         .count();
     assert!(changed > noisy.rgb.len() / 2);
+    // the noise is N(0, 0.05) on the [0, 1] scale, white: away from the clip
+    // limits its mean is 0, its deviation 0.05 · 255 levels, neighbours uncorrelated
+    let e: Vec<f64> = noisy
+        .rgb
+        .iter()
+        .zip(&clean.rgb)
+        .filter(|(_, c)| (40..=215).contains(*c))
+        .map(|(n, c)| f64::from(*n) - f64::from(*c))
+        .collect();
+    let m = e.len() as f64;
+    let mean = e.iter().sum::<f64>() / m;
+    let var = e.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / m;
+    let lag1 = e
+        .windows(2)
+        .map(|w| (w[0] - mean) * (w[1] - mean))
+        .sum::<f64>()
+        / (m - 1.0);
+    assert!(e.len() > 100_000, "{} samples", e.len());
+    assert!(mean.abs() < 0.1, "noise mean {mean}");
+    let sd = var.sqrt();
+    assert!(
+        (sd - 0.05 * 255.0).abs() < 0.03 * 0.05 * 255.0,
+        "noise deviation {sd}"
+    );
+    assert!(
+        (lag1 / var).abs() < 0.01,
+        "neighbour correlation {}",
+        lag1 / var
+    );
     let blurred = frame(FrameParams {
         blur_px: 2.0,
         ..base
