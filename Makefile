@@ -46,6 +46,7 @@ fmt:
 
 bench:
 	$(CARGO) bench -p kflex-model -p kflex-estimate
+	python3 tools/bench_table.py
 
 fit:
 	$(CARGO) run --release --locked -p kflex-control --example fit_calibration

@@ -5,11 +5,15 @@
 //! 2. **Split**: a quadtree of aligned power-of-two blocks. A block is split in
 //!    four while the range of its brightness or of its redness exceeds
 //!    [`SegmentParams::split_range`] and its side exceeds [`SegmentParams::min_block`]
-//!    px (at least 2). Block statistics come from a pyramid built bottom-up in one
-//!    pass, so the split is linear in the pixels.
+//!    px (at least 2). Block statistics (ranges and colour sums, in integers) come
+//!    from a pyramid built bottom-up in one pass, so the split is linear in the
+//!    pixels. On x86-64 CPUs with AVX2 the pyramid runs on a vectorised copy of
+//!    the same code, chosen at run time.
 //! 3. **Merge**: adjacent leaves whose mean colours differ by less than
 //!    [`SegmentParams::merge_distance`] become one region (union–find over the
-//!    leaves' adjacency, on the regions' running means).
+//!    leaves' adjacency, on the regions' running means). No leaf is smaller than
+//!    a 2×2 cell, so merging, thresholding and the component filter work on the
+//!    grid of cells, a quarter of the pixels.
 //! 4. **Threshold**: a region is instrument where its mean colour is metallic —
 //!    unsaturated (`(max − min)/max < max_saturation`), not reddish
 //!    (`r − (g + b)/2 < max_redness`) and not dark (`max > min_value`) — and
