@@ -30,6 +30,9 @@ pub struct RenderArgs {
     /// Seed of the background and the sensor noise.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Frame number: fresh sensor noise over the same background.
+    #[arg(long, default_value_t = 0)]
+    frame: u64,
     /// Illumination gain.
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     gain: f64,
@@ -63,6 +66,7 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     let params = FrameParams {
         background,
         seed: args.seed,
+        frame: args.frame,
         illumination_gain: args.gain,
         noise_std: args.noise,
         blur_px: args.blur,

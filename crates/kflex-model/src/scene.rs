@@ -69,6 +69,9 @@ pub struct FrameParams {
     pub background: Background,
     /// Seed of the background and of the sensor noise.
     pub seed: u64,
+    /// Frame number: fresh sensor noise over the same background, as from a
+    /// video camera (the background is cached per seed; the noise is not).
+    pub frame: u64,
     /// Illumination gain (1: nominal).
     pub illumination_gain: f64,
     /// Standard deviation of Gaussian sensor noise on the [0, 1] image (the paper augments with 0.01).
@@ -84,6 +87,7 @@ impl Default for FrameParams {
         Self {
             background: Background::Colon,
             seed: 0,
+            frame: 0,
             illumination_gain: 1.0,
             noise_std: 0.01,
             blur_px: 0.0,
@@ -324,7 +328,9 @@ impl SceneRenderer {
         }
         let sensor = Sensor {
             normals: &self.normals,
-            key: params.seed.wrapping_mul(0xD1B5_4A32_D192_ED03) ^ 0x006e_6f69_7365,
+            key: params.seed.wrapping_mul(0xD1B5_4A32_D192_ED03)
+                ^ params.frame.wrapping_mul(0x8CB9_2BA7_2F3D_8DD7)
+                ^ 0x006e_6f69_7365,
             gain: params.illumination_gain as f32,
             sigma: params.noise_std as f32,
         };

@@ -161,6 +161,29 @@ fn illumination_gain_brightens_and_noise_perturbs() {
         "neighbour correlation {}",
         lag1 / var
     );
+    // a later video frame: the same background, fresh noise
+    let noisy_default = frame(FrameParams::default());
+    let next = frame(FrameParams {
+        frame: 1,
+        ..FrameParams::default()
+    });
+    let differ = next
+        .rgb
+        .iter()
+        .zip(&noisy_default.rgb)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(differ > next.rgb.len() / 2, "{differ} values differ");
+    let mean_gap = next
+        .rgb
+        .iter()
+        .zip(&noisy_default.rgb)
+        .map(|(a, b)| (f64::from(*a) - f64::from(*b)).abs())
+        .sum::<f64>()
+        / next.rgb.len() as f64;
+    // two independent draws of N(0, 0.01·255): mean |difference| ≈ 2.9 levels
+    assert!(mean_gap < 4.0, "mean |difference| {mean_gap}");
+    assert_eq!(next.instrument, noisy_default.instrument);
     let blurred = frame(FrameParams {
         blur_px: 2.0,
         ..base
