@@ -18,8 +18,10 @@ GOALS = {
     "silhouette_48x48": ("48x48 silhouette", 1 / 20_000, ">= 20,000/s"),
     "silhouette_640x480": ("640x480 silhouette", None, ""),
     "shaded_640x480": ("shaded 640x480 frame", 1 / 200, ">= 200/s"),
-    "segment_640x480": ("segmentation, 640x480", 1e-3, "<= 1 ms median"),
-    "segment_1920x1080": ("segmentation, 1920x1080", 5e-3, "<= 5 ms median"),
+    "segment_640x480": ("segmentation, 640x480, kept Segmenter", 1e-3, "<= 1 ms median"),
+    "segment_1920x1080": ("segmentation, 1920x1080, kept Segmenter", 5e-3, "<= 5 ms median"),
+    "segment_640x480_one_off": ("segmentation, 640x480, one-off", None, ""),
+    "segment_1920x1080_one_off": ("segmentation, 1920x1080, one-off", None, ""),
 }
 
 

@@ -4,7 +4,7 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use kflex_estimate::{Roi, SegmentParams, segment};
+use kflex_estimate::{Roi, SegmentParams, Segmenter, segment};
 use kflex_model::camera::{Camera, Intrinsics};
 use kflex_model::instrument::Instrument;
 use kflex_model::scene::{FrameParams, SceneRenderer};
@@ -25,7 +25,21 @@ fn bench(c: &mut Criterion) {
             width: f.width,
             height: f.height,
         };
+        // the loop's way: one Segmenter kept from frame to frame
+        let mut segmenter = Segmenter::new(SegmentParams::default()).expect("params");
         c.bench_function(name, |b| {
+            b.iter(|| {
+                black_box(
+                    segmenter
+                        .segment(&f.rgb, f.width, f.height, roi)
+                        .expect("segment")
+                        .small
+                        .count(),
+                )
+            })
+        });
+        // one-off: `segment`, allocating its working memory every call
+        c.bench_function(&format!("{name}_one_off"), |b| {
             b.iter(|| {
                 black_box(
                     segment(&f.rgb, f.width, f.height, roi, &SegmentParams::default())

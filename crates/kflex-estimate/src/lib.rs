@@ -9,4 +9,4 @@ pub mod error;
 pub mod segment;
 
 pub use error::{EstimateError, Result};
-pub use segment::{Roi, SegmentParams, Segmentation, segment};
+pub use segment::{Roi, SegmentParams, Segmentation, Segmenter, segment};

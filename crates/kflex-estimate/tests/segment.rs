@@ -1,6 +1,6 @@
 //! Segmentation against the rendered frames' ground truth.
 
-use kflex_estimate::{EstimateError, Roi, SegmentParams, segment};
+use kflex_estimate::{EstimateError, Roi, SegmentParams, Segmenter, segment};
 use kflex_model::Mask;
 use kflex_model::camera::Camera;
 use kflex_model::instrument::Instrument;
@@ -236,5 +236,74 @@ proptest::proptest! {
             Err(EstimateError::NoInstrument { .. }) => {}
             Err(e) => proptest::prop_assert!(false, "unexpected error {e}"),
         }
+    }
+}
+
+#[test]
+fn a_kept_segmenter_gives_what_a_fresh_one_gives() {
+    let frames = [
+        render(10.0, FrameParams::default()),
+        render(
+            40.0,
+            FrameParams {
+                background: Background::Larynx,
+                occlusion: Some(Occlusion {
+                    fraction: 0.2,
+                    position: 0.5,
+                }),
+                ..FrameParams::default()
+            },
+        ),
+    ];
+    let mut kept = Segmenter::new(SegmentParams::default()).unwrap();
+    let big = Roi {
+        x0: 100,
+        y0: 120,
+        width: 401,
+        height: 359,
+    };
+    // alternate frames and region sizes: nothing of one frame leaks into the next
+    for (f, roi) in [(0, ROI), (1, big), (0, big), (1, ROI), (0, ROI)] {
+        let f = &frames[f];
+        let fresh = segment(&f.rgb, f.width, f.height, roi, &SegmentParams::default()).unwrap();
+        let again = kept.segment(&f.rgb, f.width, f.height, roi).unwrap();
+        assert_eq!(again, &fresh);
+    }
+    // a failed frame leaves the segmenter usable
+    let empty = Roi {
+        x0: 0,
+        y0: 0,
+        width: 100,
+        height: 100,
+    };
+    let f = &frames[0];
+    assert!(kept.segment(&f.rgb, f.width, f.height, empty).is_err());
+    let fresh = segment(&f.rgb, f.width, f.height, ROI, &SegmentParams::default()).unwrap();
+    assert_eq!(
+        kept.segment(&f.rgb, f.width, f.height, ROI).unwrap(),
+        &fresh
+    );
+}
+
+#[test]
+fn thresholds_out_of_range_are_errors() {
+    for params in [
+        SegmentParams {
+            split_range: f32::NAN,
+            ..SegmentParams::default()
+        },
+        SegmentParams {
+            min_component: 1.5,
+            ..SegmentParams::default()
+        },
+        SegmentParams {
+            out: 0,
+            ..SegmentParams::default()
+        },
+    ] {
+        assert!(matches!(
+            Segmenter::new(params),
+            Err(EstimateError::InvalidParameter { .. })
+        ));
     }
 }

@@ -133,6 +133,42 @@ impl Mask {
         })
     }
 
+    /// Makes this a clear `width × height` mask, keeping the allocation where it
+    /// is large enough (for loops that refill one mask frame after frame).
+    pub fn reshape(&mut self, width: u32, height: u32) -> Result<()> {
+        crate::error::image_size(width, height)?;
+        self.width = width;
+        self.height = height;
+        self.data.clear();
+        self.data.resize(width as usize * height as usize, 0);
+        Ok(())
+    }
+
+    /// Writes row `y` from `row` (non-zero = set); `row` must be one row long.
+    pub fn set_row(&mut self, y: u32, row: &[u8]) -> Result<()> {
+        if y >= self.height {
+            return Err(ModelError::InvalidParameter {
+                name: "mask row",
+                value: f64::from(y),
+                range: format!("[0, {})", self.height),
+            });
+        }
+        if row.len() != self.width as usize {
+            return Err(ModelError::ImageSize {
+                what: "mask row",
+                width: self.width,
+                height: self.height,
+                expected: self.width as usize,
+                got: row.len(),
+            });
+        }
+        let start = y as usize * self.width as usize;
+        for (d, &v) in self.data[start..start + row.len()].iter_mut().zip(row) {
+            *d = u8::from(v != 0);
+        }
+        Ok(())
+    }
+
     fn set(&mut self, x: usize, y: usize) {
         self.data[y * self.width as usize + x] = 1;
     }
