@@ -257,3 +257,22 @@ fn bad_input_is_a_typed_error() {
     assert!(Intrinsics::from_fov(0, 480, 90.0).is_err());
     assert!(Intrinsics::from_fov(640, 480, 180.0).is_err());
 }
+
+#[test]
+fn a_mask_refilled_row_by_row_equals_one_built_whole() {
+    let data: Vec<u8> = (0..35).map(|i| [0, 1, 7][i % 3]).collect();
+    let whole = Mask::from_raw(7, 5, data.clone()).unwrap();
+    let mut m = Mask::new(40, 2).unwrap();
+    m.set_row(1, &[1; 40]).unwrap();
+    m.reshape(7, 5).unwrap();
+    assert_eq!((m.width(), m.height(), m.count()), (7, 5, 0));
+    for (y, row) in data.chunks(7).enumerate() {
+        m.set_row(y as u32, row).unwrap();
+    }
+    // non-zero reads as set, stored as 1
+    assert_eq!(m, whole);
+    assert!(m.data().iter().all(|&v| v <= 1));
+    assert!(m.set_row(5, &[0; 7]).is_err());
+    assert!(m.set_row(0, &[0; 6]).is_err());
+    assert!(m.reshape(0, 3).is_err());
+}
