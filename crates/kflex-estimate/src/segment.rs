@@ -145,19 +145,18 @@ pub fn segment(
 ) -> Result<Segmentation> {
     let mut segmenter = Segmenter::new(*params)?;
     segmenter.segment(rgb, width, height, roi)?;
-    segmenter
-        .output
-        .ok_or(EstimateError::NoInstrument { pixels: 0, min: 1 })
+    Ok(segmenter.output)
 }
 
 /// The segmentation stage of the estimation loop: [`segment`] with its working
 /// memory kept from frame to frame, so that after the first frame of a region
 /// size a frame costs no allocation.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct Segmenter {
     params: SegmentParams,
     scratch: Scratch,
-    output: Option<Segmentation>,
+    /// The last frame's result, its masks refilled by the next.
+    output: Segmentation,
 }
 
 /// Working memory of a [`Segmenter`].
@@ -215,7 +214,11 @@ impl Segmenter {
         }
         Ok(Self {
             params,
-            ..Self::default()
+            scratch: Scratch::default(),
+            output: Segmentation {
+                full: Mask::new(1, 1)?,
+                small: Mask::new(params.out, params.out)?,
+            },
         })
     }
 
@@ -304,19 +307,9 @@ impl Segmenter {
         if count < min {
             return Err(EstimateError::NoInstrument { pixels: count, min });
         }
-        let output = match self.output.take() {
-            Some(mut o) => {
-                o.full.reshape(roi.width, roi.height)?;
-                o.small.reshape(p.out, p.out)?;
-                o
-            }
-            None => Segmentation {
-                full: Mask::new(roi.width, roi.height)?,
-                small: Mask::new(p.out, p.out)?,
-            },
-        };
-        let output = self.output.insert(output);
-        let s = &mut self.scratch;
+        let output = &mut self.output;
+        output.full.reshape(roi.width, roi.height)?;
+        output.small.reshape(p.out, p.out)?;
         s.row.clear();
         s.row.resize(rw, 0);
         for (cy, crow) in s.cells.chunks_exact(cols).enumerate() {
