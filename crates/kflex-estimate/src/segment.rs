@@ -730,18 +730,14 @@ fn resample_cells(
     out: &mut Mask,
 ) -> Result<()> {
     let n = out.width() as usize;
-    let span = |i: usize, len: usize| {
-        let lo = i * len / n;
-        (lo, ((i + 1) * len / n).max(lo + 1).min(len))
-    };
     s.spans.clear();
-    s.spans.extend((0..n).map(|ox| span(ox, rw)));
+    s.spans.extend((0..n).map(|ox| vote_span(ox, rw, n)));
     s.row.clear();
     s.row.resize(n, 0);
     s.column.clear();
     s.column.resize(cols, 0);
     for oy in 0..n {
-        let (y0, y1) = span(oy, rh);
+        let (y0, y1) = vote_span(oy, rh, n);
         // pixels set in each cell column over pixel rows y0..y1
         s.column.fill(0);
         for y in y0..y1 {
@@ -759,17 +755,20 @@ fn resample_cells(
     Ok(())
 }
 
+/// The pixels `[lo, hi)` of `len` that output cell `i` of `n` covers in the area
+/// vote (at least one).
+fn vote_span(i: usize, len: usize, n: usize) -> (usize, usize) {
+    let lo = i * len / n;
+    (lo, ((i + 1) * len / n).max(lo + 1).min(len))
+}
+
 /// Area vote: output cell set where at least half of the pixels it covers are.
 pub fn resample(mask: &[u8], w: usize, h: usize, out: usize) -> Vec<u8> {
-    let span = |i: usize, n: usize| {
-        let lo = i * n / out;
-        (lo, ((i + 1) * n / out).max(lo + 1).min(n))
-    };
-    let xs: Vec<(usize, usize)> = (0..out).map(|ox| span(ox, w)).collect();
+    let xs: Vec<(usize, usize)> = (0..out).map(|ox| vote_span(ox, w, out)).collect();
     let mut res = vec![0u8; out * out];
     let mut column = vec![0u32; w];
     for (oy, res_row) in res.chunks_exact_mut(out).enumerate() {
-        let (y0, y1) = span(oy, h);
+        let (y0, y1) = vote_span(oy, h, out);
         column.fill(0);
         for row in mask[y0 * w..y1 * w].chunks_exact(w) {
             for (c, &v) in column.iter_mut().zip(row) {
