@@ -256,14 +256,16 @@ impl SceneRenderer {
                 CameraCapsule::new(a, b, c.radius, screen_box(camera, a, b, c.radius))
             })
             .collect();
+        let mut row_caps: Vec<(usize, &CameraCapsule)> = Vec::with_capacity(caps.len());
         for (y, row) in silhouette.data().chunks_exact(w as usize).enumerate() {
             let py = y as f64 + 0.5;
             // the capsules whose screen box meets this row
-            let row_caps: Vec<(usize, &CameraCapsule)> = caps
-                .iter()
-                .enumerate()
-                .filter(|(_, c)| py >= c.screen[2] && py <= c.screen[3])
-                .collect();
+            row_caps.clear();
+            row_caps.extend(
+                caps.iter()
+                    .enumerate()
+                    .filter(|(_, c)| py >= c.screen[2] && py <= c.screen[3]),
+            );
             for (x, _) in row.iter().enumerate().filter(|(_, v)| **v != 0) {
                 let px = x as f64 + 0.5;
                 let d = camera.ray_direction(px, py);
@@ -288,7 +290,7 @@ impl SceneRenderer {
                         let falloff = (30.0 / t.max(5.0)).powi(2).min(1.6);
                         let diffuse = 0.25 + 0.75 * cos;
                         let spec = cos.powi(40) * 0.9;
-                        let s = lengths[i] + u * capsule_length(&shape.capsules[i]);
+                        let s = lengths[i] + u * caps[i].len;
                         (
                             ((diffuse * falloff) as f32, (spec * falloff) as f32),
                             s as f32,
