@@ -10,6 +10,18 @@ fn kflex(args: &[&str]) -> Output {
         .expect("kflex-cli runs")
 }
 
+/// Runs `kflex-cli args`, which must fail with an error naming `needle`, not a panic.
+fn assert_refused(args: &[&str], needle: &str) {
+    let out = kflex(args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} should fail");
+    assert!(
+        stderr.contains(needle),
+        "{args:?}: error should name {needle}: {stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("kflex-cli-test-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -125,14 +137,7 @@ fn bad_input_is_a_clear_error_and_keeps_old_results() {
             "/nonexistent/plant.json",
         ),
     ] {
-        let out = kflex(&args);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{args:?} should fail");
-        assert!(
-            stderr.contains(needle),
-            "{args:?}: error should name {needle}: {stderr}"
-        );
-        assert!(!stderr.contains("panicked"), "{stderr}");
+        assert_refused(&args, needle);
     }
     assert_eq!(
         std::fs::read_to_string(dir.join("results.json")).unwrap(),
@@ -233,11 +238,6 @@ fn render_writes_the_pngs_and_rejects_bad_input() {
             "occlusion.fraction",
         ),
     ] {
-        let out = kflex(&args);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            !out.status.success() && stderr.contains(needle),
-            "{args:?}: {stderr}"
-        );
+        assert_refused(&args, needle);
     }
 }
