@@ -4,11 +4,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use kflex_estimate::{Roi, SegmentParams, segment};
-use kflex_model::camera::{Camera, Intrinsics};
-use kflex_model::instrument::Instrument;
-use kflex_model::raster::{Mask, Rasterizer};
-use kflex_model::scene::{Background, FrameParams, Occlusion, SceneRenderer};
+use kflex_estimate::{SegmentParams, segment};
+use kflex_model::{
+    Background, Camera, FrameParams, Instrument, Intrinsics, Mask, Occlusion, Rasterizer, Roi,
+    SceneRenderer,
+};
 
 #[derive(Debug, Args)]
 pub struct RenderArgs {
@@ -73,23 +73,9 @@ pub fn render(args: &RenderArgs) -> Result<()> {
         occlusion,
     };
     let frame = SceneRenderer::new().render(&camera, &shape, &params)?;
-    // the working-area region of interest of the default camera, scaled with the image
-    let scale = f64::from(intrinsics.width) / 640.0;
-    let side = (220.0 * scale) as u32;
-    let roi = Roi {
-        x0: (220.0 * scale) as u32,
-        y0: (240.0 * scale) as u32,
-        width: side,
-        height: side,
-    };
-    let roi_camera = camera.with_intrinsics(intrinsics.region(
-        f64::from(roi.x0),
-        f64::from(roi.y0),
-        f64::from(side),
-        f64::from(side),
-        48,
-        48,
-    )?);
+    // the working region: where the joint and gripper can be over the paper's poses
+    let roi = Roi::working(&camera)?;
+    let roi_camera = camera.with_intrinsics(intrinsics.for_roi(&roi, 48, 48)?);
     let mut silhouette = Mask::new(48, 48)?;
     Rasterizer::new().silhouette(&roi_camera, &shape, &mut silhouette)?;
 
@@ -109,11 +95,13 @@ pub fn render(args: &RenderArgs) -> Result<()> {
         &SegmentParams::default(),
     ) {
         Ok(seg) => {
+            println!(
+                "region of interest: {}×{} px at ({}, {})",
+                roi.width, roi.height, roi.x0, roi.y0
+            );
             save_mask(&args.out, "segmentation_roi.png", &seg.full)?;
             save_mask(&args.out, "segmentation_48.png", &seg.small)?;
-            let truth = frame
-                .instrument
-                .crop(roi.x0, roi.y0, roi.width, roi.height)?;
+            let truth = frame.instrument.crop(roi)?;
             println!(
                 "segmentation: IoU {:.3} with the visible instrument in the region of interest",
                 seg.full.iou(&truth)?

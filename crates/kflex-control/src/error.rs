@@ -1,23 +1,18 @@
 //! The one error type of `kflex-control`.
 
+use kflex_model::{ModelError, RangeError};
 use thiserror::Error;
 
 /// What can go wrong running experiments or computing metrics.
 #[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
 pub enum ControlError {
     /// The plant or a trajectory refused its input.
     #[error(transparent)]
-    Model(#[from] kflex_model::ModelError),
-    /// A setting is outside its valid range.
-    #[error("{name} = {value} is out of range: must be in {range}")]
-    InvalidParameter {
-        /// Setting name.
-        name: &'static str,
-        /// The value given.
-        value: f64,
-        /// Valid range, in words.
-        range: String,
-    },
+    Model(#[from] ModelError),
+    /// A setting of this crate is outside its range.
+    #[error(transparent)]
+    OutOfRange(#[from] RangeError),
     /// A metric needs data it was not given.
     #[error("{metric} needs {needed}, got {got}")]
     NotEnoughData {
@@ -28,6 +23,27 @@ pub enum ControlError {
         /// How much it got.
         got: usize,
     },
+    /// A series handed to a metric holds a NaN or an infinity.
+    #[error("{metric}: sample {index} is not finite ({value})")]
+    NonFiniteSample {
+        /// Which metric.
+        metric: &'static str,
+        /// Index of the first bad sample (counting the first series, then the second).
+        index: usize,
+        /// Its value.
+        value: f64,
+    },
+}
+
+impl ControlError {
+    /// The range error behind this error, whichever crate raised it.
+    #[must_use]
+    pub fn range(&self) -> Option<&RangeError> {
+        match self {
+            Self::OutOfRange(e) | Self::Model(ModelError::OutOfRange(e)) => Some(e),
+            _ => None,
+        }
+    }
 }
 
 /// Result alias for this crate.

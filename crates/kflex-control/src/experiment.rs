@@ -14,7 +14,7 @@
 //! repeated runs on a real robot (temperature, tendon seating, sheath lay).
 
 use kflex_model::{
-    AuroraNoise, Command, JointModelKind, Plant, PlantConfig, Trajectory, TrajectorySampler,
+    AuroraNoise, Bounds, Command, JointModelKind, Plant, PlantConfig, Trajectory, TrajectorySampler,
 };
 use serde::{Deserialize, Serialize};
 
@@ -60,11 +60,11 @@ pub struct Trace {
     /// θ_d, deg.
     pub theta_d_deg: Vec<f64>,
     /// dθ_d/dt, deg/s.
-    pub theta_d_rate_deg_s: Vec<f64>,
+    pub theta_d_rate_deg_per_s: Vec<f64>,
     /// True θ_a, deg.
     pub theta_a_deg: Vec<f64>,
     /// Measured θ_a, deg.
-    pub theta_measured_deg: Vec<f64>,
+    pub theta_a_measured_deg: Vec<f64>,
 }
 
 /// Metrics of one run, deg.
@@ -82,15 +82,15 @@ impl Trace {
     /// Metrics of this trace, on the measured angle.
     pub fn metrics(&self) -> Result<RunMetrics> {
         Ok(RunMetrics {
-            rmse_deg: metrics::rmse(&self.theta_d_deg, &self.theta_measured_deg)?,
+            rmse_deg: metrics::rmse(&self.theta_d_deg, &self.theta_a_measured_deg)?,
             max_hysteresis_deg: metrics::loop_width(
                 &self.theta_d_deg,
-                &self.theta_d_rate_deg_s,
-                &self.theta_measured_deg,
+                &self.theta_d_rate_deg_per_s,
+                &self.theta_a_measured_deg,
             )?,
             error_peak_to_peak_deg: metrics::error_peak_to_peak(
                 &self.theta_d_deg,
-                &self.theta_measured_deg,
+                &self.theta_a_measured_deg,
             )?,
         })
     }
@@ -98,37 +98,25 @@ impl Trace {
 
 impl OpenLoopScenario {
     fn validate(&self) -> Result<TrajectorySampler> {
-        positive("periods", self.periods, 1e4)?;
-        positive("period_s", self.period_s, 1e5)?;
-        positive("dt_s", self.dt_s, 10.0)?;
-        if !(self.pre_roll_s >= 0.0 && self.pre_roll_s < 1e4) {
-            return Err(ControlError::InvalidParameter {
-                name: "pre_roll_s",
-                value: self.pre_roll_s,
-                range: "[0, 1e4)".into(),
-            });
-        }
+        Bounds::open_closed(0.0, 1e4).check("periods", self.periods)?;
+        Bounds::open_closed(0.0, 1e5).check("period_s", self.period_s)?;
+        Bounds::open_closed(0.0, 10.0).check("dt_s", self.dt_s)?;
+        Bounds::closed_open(0.0, 1e4).check("pre_roll_s", self.pre_roll_s)?;
         let ticks = self.periods * self.period_s / self.dt_s;
-        if ticks > 5e7 {
-            return Err(ControlError::InvalidParameter {
-                name: "periods * period_s / dt_s",
-                value: ticks,
-                range: "[1, 5e7]".into(),
-            });
-        }
+        Bounds::closed(1.0, 5e7).check("periods * period_s / dt_s", ticks)?;
         Ok(self.trajectory.sampler()?)
     }
 
     /// Drives `plant` (from its current state) through the scenario and records the evaluated part.
     pub fn run(&self, plant: &mut Plant) -> Result<Trace> {
         let sampler = self.validate()?;
-        let start = sampler.sample(0.0).theta_deg;
-        let command = |theta_deg| Command {
-            theta_deg,
+        let start = sampler.sample(0.0).theta_d_deg;
+        let command = |theta_c_deg| Command {
+            theta_c_deg,
             translation_mm: self.translation_mm,
         };
         // pre-roll: raised cosine from the plant's angle to θ_d(0), then hold
-        let from = plant.state().command.theta_deg;
+        let from = plant.state().command.theta_c_deg;
         let ramp_ticks = (self.pre_roll_s / self.dt_s).round() as usize;
         for k in 1..=2 * ramp_ticks {
             let u = (k as f64 / ramp_ticks as f64).min(1.0);
@@ -140,9 +128,9 @@ impl OpenLoopScenario {
         for v in [
             &mut trace.time_s,
             &mut trace.theta_d_deg,
-            &mut trace.theta_d_rate_deg_s,
+            &mut trace.theta_d_rate_deg_per_s,
             &mut trace.theta_a_deg,
-            &mut trace.theta_measured_deg,
+            &mut trace.theta_a_measured_deg,
         ] {
             v.reserve(n);
         }
@@ -150,26 +138,14 @@ impl OpenLoopScenario {
             // sample at the end of the tick, when the plant has answered it
             let t = (k + 1) as f64 * self.dt_s;
             let s = sampler.sample(t);
-            let state = plant.step(command(s.theta_deg), self.dt_s)?;
+            let state = plant.step(command(s.theta_d_deg), self.dt_s)?;
             trace.time_s.push(t);
-            trace.theta_d_deg.push(s.theta_deg);
-            trace.theta_d_rate_deg_s.push(s.rate_deg_s);
-            trace.theta_a_deg.push(state.theta_deg);
-            trace.theta_measured_deg.push(state.measured_theta_deg);
+            trace.theta_d_deg.push(s.theta_d_deg);
+            trace.theta_d_rate_deg_per_s.push(s.theta_d_rate_deg_per_s);
+            trace.theta_a_deg.push(state.theta_a_deg);
+            trace.theta_a_measured_deg.push(state.theta_a_measured_deg);
         }
         Ok(trace)
-    }
-}
-
-fn positive(name: &'static str, value: f64, max: f64) -> Result<f64> {
-    if value.is_finite() && value > 0.0 && value <= max {
-        Ok(value)
-    } else {
-        Err(ControlError::InvalidParameter {
-            name,
-            value,
-            range: format!("(0, {max}]"),
-        })
     }
 }
 
@@ -229,13 +205,7 @@ pub struct GridRow {
 impl OpenLoopGrid {
     /// Runs every configuration and repeat. Deterministic in `seed`.
     pub fn run(&self) -> Result<Vec<GridRow>> {
-        if self.repeats == 0 || self.repeats > 1000 {
-            return Err(ControlError::InvalidParameter {
-                name: "repeats",
-                value: f64::from(self.repeats),
-                range: "[1, 1000]".into(),
-            });
-        }
+        Bounds::closed(1.0, 1000.0).check("repeats", f64::from(self.repeats))?;
         if self.sheaths_deg.is_empty() {
             return Err(ControlError::NotEnoughData {
                 metric: "grid",

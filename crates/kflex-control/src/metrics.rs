@@ -93,11 +93,11 @@ fn check_pair(metric: &'static str, a: &[f64], b: &[f64]) -> Result<()> {
             got: a.len().min(b.len()),
         });
     }
-    if a.iter().chain(b).any(|v| !v.is_finite()) {
-        return Err(ControlError::InvalidParameter {
-            name: metric,
-            value: f64::NAN,
-            range: "finite samples only".into(),
+    if let Some((index, &value)) = a.iter().chain(b).enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(ControlError::NonFiniteSample {
+            metric,
+            index,
+            value,
         });
     }
     Ok(())
@@ -176,12 +176,43 @@ mod tests {
 
     #[test]
     fn bad_inputs_are_errors() {
-        assert!(rmse(&[], &[]).is_err());
-        assert!(rmse(&[1.0], &[1.0, 2.0]).is_err());
-        assert!(rmse(&[f64::NAN], &[1.0]).is_err());
+        assert!(matches!(
+            rmse(&[], &[]),
+            Err(ControlError::NotEnoughData {
+                metric: "rmse",
+                got: 0,
+                ..
+            })
+        ));
+        assert!(matches!(
+            rmse(&[1.0], &[1.0, 2.0]),
+            Err(ControlError::NotEnoughData {
+                metric: "rmse",
+                got: 1,
+                ..
+            })
+        ));
+        assert!(matches!(
+            rmse(&[1.0, 2.0], &[1.0, f64::NAN]),
+            Err(ControlError::NonFiniteSample { metric: "rmse", index: 3, value }) if value.is_nan()
+        ));
         // monotone command: no falling branch
-        assert!(loop_width(&[1.0, 2.0], &[1.0, 1.0], &[1.0, 2.0]).is_err());
-        assert!(MeanStd::of(&[]).is_err());
+        assert!(matches!(
+            loop_width(&[1.0, 2.0], &[1.0, 1.0], &[1.0, 2.0]),
+            Err(ControlError::NotEnoughData {
+                metric: "loop_width",
+                got: 0,
+                ..
+            })
+        ));
+        assert!(matches!(
+            MeanStd::of(&[]),
+            Err(ControlError::NotEnoughData {
+                metric: "mean",
+                got: 0,
+                ..
+            })
+        ));
         let m = MeanStd::of(&[1.0, 3.0]).unwrap();
         assert_eq!(m.mean, 2.0);
         assert!((m.std - 2f64.sqrt()).abs() < 1e-15);

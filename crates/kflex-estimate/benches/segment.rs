@@ -4,10 +4,11 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use kflex_estimate::{Roi, SegmentParams, Segmenter, segment};
-use kflex_model::camera::{Camera, Intrinsics};
-use kflex_model::instrument::Instrument;
-use kflex_model::scene::{FrameParams, SceneRenderer};
+use kflex_estimate::{SegmentParams, Segmenter, segment};
+use kflex_model::Instrument;
+use kflex_model::Roi;
+use kflex_model::{Camera, Intrinsics};
+use kflex_model::{FrameParams, SceneRenderer};
 
 fn bench(c: &mut Criterion) {
     let shape = Instrument::kflex().shape(30.0, 10.0).expect("shape");

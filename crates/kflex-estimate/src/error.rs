@@ -1,13 +1,21 @@
 //! The one error type of `kflex-estimate`.
 
+use kflex_model::{ModelError, RangeError};
 use thiserror::Error;
 
 /// What can go wrong estimating the joint angle.
+///
+/// Out-of-range values arrive as [`RangeError`] (the quantity's name, the
+/// value and its numeric bounds), directly or through [`ModelError`].
 #[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
 pub enum EstimateError {
-    /// From the testbed model (bad sizes, parameters).
+    /// From the testbed model's shared types (image sizes, regions, parameters).
     #[error(transparent)]
-    Model(#[from] kflex_model::ModelError),
+    Model(#[from] ModelError),
+    /// A parameter of this crate is outside its range.
+    #[error(transparent)]
+    OutOfRange(#[from] RangeError),
     /// The segmentation found no instrument (or too little of it to use).
     #[error(
         "no instrument found: {pixels} instrument pixels in the region of interest, at least {min} needed"
@@ -18,7 +26,7 @@ pub enum EstimateError {
         /// The least that counts as an instrument.
         min: usize,
     },
-    /// An image buffer whose size does not match its dimensions.
+    /// An RGB buffer whose length does not match its dimensions.
     #[error("image buffer of {got} bytes does not match {width}×{height} RGB ({expected} bytes)")]
     ImageSize {
         /// Width, px.
@@ -30,16 +38,17 @@ pub enum EstimateError {
         /// Bytes given.
         got: usize,
     },
-    /// A region of interest outside the image, or a parameter out of range.
-    #[error("{name} = {value} is out of range: must be in {range}")]
-    InvalidParameter {
-        /// Which.
-        name: &'static str,
-        /// The value.
-        value: f64,
-        /// Valid range, in words.
-        range: String,
-    },
+}
+
+impl EstimateError {
+    /// The range error behind this error, whichever crate raised it.
+    #[must_use]
+    pub fn range(&self) -> Option<&RangeError> {
+        match self {
+            Self::OutOfRange(e) | Self::Model(ModelError::OutOfRange(e)) => Some(e),
+            _ => None,
+        }
+    }
 }
 
 /// Result alias for this crate.

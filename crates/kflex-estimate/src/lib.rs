@@ -1,12 +1,20 @@
 //! # kflex-estimate — joint-angle estimation
 //!
-//! Image side of the paper's IBJAE: region-based segmentation of the endoscope
-//! frame into the 48×48 binary image the Siamese CNN consumes ([`segment()`]).
-//! The networks, the feature index and the Kalman fusion come with later issues.
+//! What a controller embeds to know where the joint is. Today: the image side
+//! of the paper's IBJAE, the region-based segmentation of an endoscope frame
+//! into the 48×48 binary image the Siamese CNN consumes ([`Segmenter`], and
+//! the one-off [`segment()`]). KBJAE, IBJAE's retrieval and the Kalman fusion
+//! (LBHJAE) come with the estimation issue, ONNX Runtime and the k-d index
+//! behind cargo features of their own.
+//!
+//! This crate depends on `kflex-model` without its default features: it uses
+//! only the shared types ([`kflex_model::Mask`], [`kflex_model::Roi`], the
+//! range check), so it compiles none of the simulator's heavy dependencies
+//! (rapier3d, parry3d, image).
 #![warn(missing_docs)]
 
-pub mod error;
-pub mod segment;
+mod error;
+mod segment;
 
 pub use error::{EstimateError, Result};
-pub use segment::{Roi, SegmentParams, Segmentation, Segmenter, segment};
+pub use segment::{SegmentParams, Segmentation, Segmenter, segment};

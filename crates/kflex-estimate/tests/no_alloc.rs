@@ -5,10 +5,11 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use kflex_estimate::{Roi, SegmentParams, Segmenter};
-use kflex_model::camera::Camera;
-use kflex_model::instrument::Instrument;
-use kflex_model::scene::{Background, FrameParams, Occlusion, SceneRenderer};
+use kflex_estimate::{SegmentParams, Segmenter};
+use kflex_model::Camera;
+use kflex_model::Instrument;
+use kflex_model::Roi;
+use kflex_model::{Background, FrameParams, Occlusion, SceneRenderer};
 
 /// Counts the allocations this thread makes while `COUNTING` is set.
 struct Counting;
@@ -49,12 +50,7 @@ static GLOBAL: Counting = Counting;
 fn a_frame_after_the_first_allocates_nothing() {
     let mut renderer = SceneRenderer::new();
     let camera = Camera::default();
-    let roi = Roi {
-        x0: 220,
-        y0: 240,
-        width: 220,
-        height: 220,
-    };
+    let roi = Roi::working(&camera).unwrap();
     let mut frame = |theta: f64, background: Background, occlusion: Option<Occlusion>| {
         let shape = Instrument::kflex().shape(theta, 10.0).unwrap();
         let params = FrameParams {

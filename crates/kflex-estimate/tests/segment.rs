@@ -1,20 +1,18 @@
 //! Segmentation against the rendered frames' ground truth.
 
-use kflex_estimate::{EstimateError, Roi, SegmentParams, Segmenter, segment};
-use kflex_model::Mask;
-use kflex_model::camera::Camera;
-use kflex_model::instrument::Instrument;
-use kflex_model::scene::{Background, Frame, FrameParams, Occlusion, SceneRenderer};
+use std::sync::LazyLock;
 
-const ROI: Roi = Roi {
-    x0: 220,
-    y0: 240,
-    width: 220,
-    height: 220,
+use kflex_estimate::{EstimateError, SegmentParams, Segmenter, segment};
+use kflex_model::{
+    Background, Camera, Frame, FrameParams, Instrument, Mask, ModelError, Occlusion, Roi,
+    SceneRenderer,
 };
 
+/// The default camera's working region.
+static ROI: LazyLock<Roi> = LazyLock::new(|| Roi::working(&Camera::default()).unwrap());
+
 fn crop(mask: &Mask, roi: Roi) -> Mask {
-    mask.crop(roi.x0, roi.y0, roi.width, roi.height).unwrap()
+    mask.crop(roi).unwrap()
 }
 
 fn render(theta: f64, params: FrameParams) -> Frame {
@@ -38,8 +36,8 @@ fn unoccluded_frames_segment_with_iou_at_least_0_9() {
                 };
                 let f = render(theta, params);
                 let seg =
-                    segment(&f.rgb, f.width, f.height, ROI, &SegmentParams::default()).unwrap();
-                let iou = seg.full.iou(&crop(&f.instrument, ROI)).unwrap();
+                    segment(&f.rgb, f.width, f.height, *ROI, &SegmentParams::default()).unwrap();
+                let iou = seg.full.iou(&crop(&f.instrument, *ROI)).unwrap();
                 ious.push((iou, bg, gain, theta));
             }
         }
@@ -66,9 +64,9 @@ fn taped_part_is_lost_and_the_rest_found() {
             ..FrameParams::default()
         };
         let f = render(30.0, params);
-        let seg = segment(&f.rgb, f.width, f.height, ROI, &SegmentParams::default()).unwrap();
-        let visible = crop(&f.instrument, ROI);
-        let tape = crop(&f.occluder, ROI);
+        let seg = segment(&f.rgb, f.width, f.height, *ROI, &SegmentParams::default()).unwrap();
+        let visible = crop(&f.instrument, *ROI);
+        let tape = crop(&f.occluder, *ROI);
         let iou = seg.full.iou(&visible).unwrap();
         let on_tape = seg
             .full
@@ -92,10 +90,10 @@ fn taped_part_is_lost_and_the_rest_found() {
 fn small_output_is_48_by_48_and_follows_the_angle() {
     let a = render(10.0, FrameParams::default());
     let b = render(40.0, FrameParams::default());
-    let sa = segment(&a.rgb, a.width, a.height, ROI, &SegmentParams::default())
+    let sa = segment(&a.rgb, a.width, a.height, *ROI, &SegmentParams::default())
         .unwrap()
         .small;
-    let sb = segment(&b.rgb, b.width, b.height, ROI, &SegmentParams::default())
+    let sb = segment(&b.rgb, b.width, b.height, *ROI, &SegmentParams::default())
         .unwrap()
         .small;
     assert_eq!((sa.width(), sa.height()), (48, 48));
@@ -125,7 +123,7 @@ fn no_instrument_and_bad_buffers_are_errors() {
             &f.rgb[..100],
             f.width,
             f.height,
-            ROI,
+            *ROI,
             &SegmentParams::default()
         ),
         Err(EstimateError::ImageSize { .. })
@@ -144,9 +142,18 @@ fn no_instrument_and_bad_buffers_are_errors() {
             outside,
             &SegmentParams::default()
         ),
-        Err(EstimateError::InvalidParameter { .. })
+        Err(EstimateError::Model(ModelError::OutOfRange(e)))
+            if e.name == "roi.x0 + roi.width" && e.value == 700.0 && e.bounds.max == 640.0
     ));
-    assert!(segment(&[], 0, 0, ROI, &SegmentParams::default()).is_err());
+    assert!(matches!(
+        segment(&[], 0, 0, *ROI, &SegmentParams::default()),
+        Err(EstimateError::ImageSize {
+            width: 0,
+            height: 0,
+            expected: 0,
+            got: 0
+        })
+    ));
 }
 
 /// A `w × h` frame of red tissue holding a grey instrument rectangle
@@ -263,7 +270,7 @@ fn a_kept_segmenter_gives_what_a_fresh_one_gives() {
         height: 359,
     };
     // alternate frames and region sizes: nothing of one frame leaks into the next
-    for (f, roi) in [(0, ROI), (1, big), (0, big), (1, ROI), (0, ROI)] {
+    for (f, roi) in [(0, *ROI), (1, big), (0, big), (1, *ROI), (0, *ROI)] {
         let f = &frames[f];
         let fresh = segment(&f.rgb, f.width, f.height, roi, &SegmentParams::default()).unwrap();
         let again = kept.segment(&f.rgb, f.width, f.height, roi).unwrap();
@@ -277,33 +284,54 @@ fn a_kept_segmenter_gives_what_a_fresh_one_gives() {
         height: 100,
     };
     let f = &frames[0];
-    assert!(kept.segment(&f.rgb, f.width, f.height, empty).is_err());
-    let fresh = segment(&f.rgb, f.width, f.height, ROI, &SegmentParams::default()).unwrap();
+    assert!(matches!(
+        kept.segment(&f.rgb, f.width, f.height, empty),
+        Err(EstimateError::NoInstrument { pixels: 0, .. })
+    ));
+    let fresh = segment(&f.rgb, f.width, f.height, *ROI, &SegmentParams::default()).unwrap();
     assert_eq!(
-        kept.segment(&f.rgb, f.width, f.height, ROI).unwrap(),
+        kept.segment(&f.rgb, f.width, f.height, *ROI).unwrap(),
         &fresh
     );
 }
 
 #[test]
 fn thresholds_out_of_range_are_errors() {
-    for params in [
-        SegmentParams {
-            split_range: f32::NAN,
-            ..SegmentParams::default()
-        },
-        SegmentParams {
-            min_component: 1.5,
-            ..SegmentParams::default()
-        },
-        SegmentParams {
-            out: 0,
-            ..SegmentParams::default()
-        },
+    for (params, name, value) in [
+        (
+            SegmentParams {
+                split_range: f32::NAN,
+                ..SegmentParams::default()
+            },
+            "split_range",
+            f64::NAN,
+        ),
+        (
+            SegmentParams {
+                min_component: 1.5,
+                ..SegmentParams::default()
+            },
+            "min_component",
+            1.5,
+        ),
+        (
+            SegmentParams {
+                out: 0,
+                ..SegmentParams::default()
+            },
+            "out",
+            0.0,
+        ),
     ] {
-        assert!(matches!(
-            Segmenter::new(params),
-            Err(EstimateError::InvalidParameter { .. })
-        ));
+        match Segmenter::new(params) {
+            Err(EstimateError::OutOfRange(e)) => {
+                assert_eq!(e.name, name);
+                assert!(
+                    e.value == value || (e.value.is_nan() && value.is_nan()),
+                    "{e}"
+                );
+            }
+            other => panic!("{name}: {other:?}"),
+        }
     }
 }

@@ -14,7 +14,7 @@ fn commands(n: usize, dt: f64) -> Vec<Command> {
     let traj = Trajectory::paper().sampler().expect("paper trajectory");
     (0..n)
         .map(|k| Command {
-            theta_deg: traj.sample(k as f64 * dt).theta_deg,
+            theta_c_deg: traj.sample(k as f64 * dt).theta_d_deg,
             translation_mm: 5.0,
         })
         .collect()

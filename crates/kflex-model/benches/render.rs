@@ -4,9 +4,9 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use kflex_model::camera::Camera;
-use kflex_model::instrument::Instrument;
-use kflex_model::raster::{Mask, Rasterizer};
+use kflex_model::Camera;
+use kflex_model::Instrument;
+use kflex_model::{Mask, Rasterizer};
 
 fn silhouettes(c: &mut Criterion) {
     let instrument = Instrument::kflex();

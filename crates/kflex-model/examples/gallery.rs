@@ -1,8 +1,8 @@
 //! Renders every background with the paper's four occlusion cases into one
 //! contact sheet: `cargo run -p kflex-model --example gallery -- OUT.png`.
-use kflex_model::camera::Camera;
-use kflex_model::instrument::Instrument;
-use kflex_model::scene::{Background, FrameParams, Occlusion, SceneRenderer};
+use kflex_model::Camera;
+use kflex_model::Instrument;
+use kflex_model::{Background, FrameParams, Occlusion, SceneRenderer};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = std::env::args()

@@ -7,9 +7,16 @@
 
 use crate::transmission::SheathParams;
 
+impl Default for SheathParams {
+    /// Defaults fitted to Table IX's uncompensated row ([`FITTED_SHEATH`]).
+    fn default() -> Self {
+        FITTED_SHEATH
+    }
+}
+
 /// Fitted tendon-sheath parameters (all free in the fit except the distal run's
 /// stiffness, set for about 50 mm of tendon pair between the sheath and the joint).
-pub const FITTED_SHEATH: SheathParams = SheathParams {
+pub(crate) const FITTED_SHEATH: SheathParams = SheathParams {
     friction_coefficient: 0.1615,
     route_wrap_deg: 4.566,
     pretension_n: 3.757,
@@ -22,4 +29,4 @@ pub const FITTED_SHEATH: SheathParams = SheathParams {
 
 /// Fitted bending stiffness of one rolling contact, N·mm/rad. The pretension's
 /// straightening moment, `2T₀(R − B) ≈ 13.5` N·mm/rad per contact, adds to it.
-pub const FITTED_CONTACT_STIFFNESS: f64 = 34.86;
+pub(crate) const FITTED_CONTACT_STIFFNESS: f64 = 34.86;

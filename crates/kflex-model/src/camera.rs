@@ -7,7 +7,9 @@
 use nalgebra::{Isometry3, Point3};
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Result, open_range};
+use crate::error::Result;
+use crate::range::Bounds;
+use crate::roi::Roi;
 
 /// Intrinsics of a pinhole camera, pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -43,7 +45,7 @@ impl Default for Intrinsics {
 impl Intrinsics {
     /// Square pixels, centred principal point, horizontal field of view `hfov_deg`.
     pub fn from_fov(width: u32, height: u32, hfov_deg: f64) -> Result<Self> {
-        open_range("hfov_deg", hfov_deg, 1.0, 179.0)?;
+        Bounds::open(1.0, 179.0).check("hfov_deg", hfov_deg)?;
         let f = 0.5 * f64::from(width) / (0.5 * hfov_deg.to_radians()).tan();
         let out = Self {
             width,
@@ -71,19 +73,38 @@ impl Intrinsics {
 
     /// Checks sizes and focal lengths.
     pub fn validate(&self) -> Result<()> {
-        crate::error::image_size(self.width, self.height)?;
-        open_range("fx", self.fx, 0.0, 1e6)?;
-        open_range("fy", self.fy, 0.0, 1e6)?;
+        crate::mask::check_image_size(self.width, self.height)?;
+        Bounds::open(0.0, 1e6).check("fx", self.fx)?;
+        Bounds::open(0.0, 1e6).check("fy", self.fy)?;
         crate::error::finite("cx", self.cx)?;
         crate::error::finite("cy", self.cy)?;
         Ok(())
     }
 
+    /// [`Intrinsics::region`] of a pixel-aligned [`Roi`].
+    ///
+    /// # Errors
+    /// As [`Intrinsics::region`].
+    pub fn for_roi(&self, roi: &Roi, out_w: u32, out_h: u32) -> Result<Self> {
+        self.region(
+            f64::from(roi.x0),
+            f64::from(roi.y0),
+            f64::from(roi.width),
+            f64::from(roi.height),
+            out_w,
+            out_h,
+        )
+    }
+
     /// The camera that sees the region `[x0, x0+w) × [y0, y0+h)` of this one's image
     /// resampled to `out_w × out_h` (a region of interest, e.g. IBJAE's 48×48).
+    ///
+    /// # Errors
+    /// [`crate::ModelError::OutOfRange`] for an empty or huge region, or an output size
+    /// out of `[1, MAX_IMAGE_SIDE]`.
     pub fn region(&self, x0: f64, y0: f64, w: f64, h: f64, out_w: u32, out_h: u32) -> Result<Self> {
-        open_range("roi width", w, 0.0, 1e6)?;
-        open_range("roi height", h, 0.0, 1e6)?;
+        Bounds::open(0.0, 1e6).check("roi width", w)?;
+        Bounds::open(0.0, 1e6).check("roi height", h)?;
         let (sx, sy) = (f64::from(out_w) / w, f64::from(out_h) / h);
         let out = Self {
             width: out_w,

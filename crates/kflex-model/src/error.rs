@@ -2,22 +2,20 @@
 
 use thiserror::Error;
 
+use crate::range::{Num, RangeError};
+
 /// Everything that can go wrong in the testbed model.
 ///
-/// Variants carry the offending value and the range it had to be in, so a
-/// caller can print a message a person can act on without extra context.
+/// Variants carry the offending value and, where there is one, the range it
+/// had to be in as numbers ([`RangeError`]), so a caller can match on them and
+/// a person can act on the message without extra context. Building any
+/// variant but [`ModelError::UnknownBackground`] allocates nothing.
 #[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
 pub enum ModelError {
     /// A configuration or call parameter is outside its physically meaningful range.
-    #[error("{name} = {value} is out of range: must be in {range}")]
-    InvalidParameter {
-        /// Parameter name, as in the config struct (units in the name where they apply).
-        name: &'static str,
-        /// The value that was given.
-        value: f64,
-        /// The valid range, in words (e.g. "(0, inf)" or "[1, 16]").
-        range: String,
-    },
+    #[error(transparent)]
+    OutOfRange(#[from] RangeError),
     /// A command or input is NaN or infinite.
     #[error("{name} is not finite ({value})")]
     NonFinite {
@@ -26,18 +24,10 @@ pub enum ModelError {
         /// The value that was given.
         value: f64,
     },
-    /// A commanded value lies outside the device's workspace.
-    #[error("{name} = {value} is outside the workspace [{min}, {max}]")]
-    OutOfWorkspace {
-        /// Which command (`theta_deg`, `translation_mm`, ...).
-        name: &'static str,
-        /// The commanded value.
-        value: f64,
-        /// Lower limit, same units.
-        min: f64,
-        /// Upper limit, same units.
-        max: f64,
-    },
+    /// A commanded pose lies outside the device's workspace (the joint's hard
+    /// stops, the translation stage's travel).
+    #[error("{} = {} is outside the workspace {}", .0.name, Num(.0.value), .0.bounds)]
+    OutOfWorkspace(RangeError),
     /// A tendon length change that no joint angle in the mechanical range produces.
     #[error(
         "tendon length change {delta_l_mm} mm is not reachable: reachable range [{min_mm}, {max_mm}] mm"
@@ -76,6 +66,43 @@ pub enum ModelError {
         /// What was found non-finite.
         what: &'static str,
     },
+    /// Something that had to be seen by the camera never is.
+    #[error("{what} is never in view of the camera")]
+    NotInView {
+        /// What was looked for.
+        what: &'static str,
+    },
+    /// A configuration asks for something this build was compiled without.
+    #[error(
+        "{what} needs kflex-model's cargo feature \"{feature}\", which this build was compiled without"
+    )]
+    FeatureDisabled {
+        /// What was asked for, as the configuration names it.
+        what: &'static str,
+        /// The cargo feature that provides it.
+        feature: &'static str,
+    },
+}
+
+impl ModelError {
+    /// The range error behind this error: the quantity, the value and its
+    /// bounds, for [`ModelError::OutOfRange`] and [`ModelError::OutOfWorkspace`].
+    ///
+    /// ```
+    /// use kflex_model::{Command, Plant, PlantConfig};
+    /// let mut plant = Plant::new(PlantConfig::default())?;
+    /// let err = plant.step(Command { theta_c_deg: 30.0, translation_mm: 5.0 }, -0.01).unwrap_err();
+    /// let range = err.range().expect("a range error");
+    /// assert_eq!((range.name, range.value, range.bounds.min), ("dt_s", -0.01, 0.0));
+    /// # Ok::<(), kflex_model::ModelError>(())
+    /// ```
+    #[must_use]
+    pub fn range(&self) -> Option<&RangeError> {
+        match self {
+            Self::OutOfRange(e) | Self::OutOfWorkspace(e) => Some(e),
+            _ => None,
+        }
+    }
 }
 
 /// Result alias for this crate.
@@ -90,40 +117,12 @@ pub(crate) fn finite(name: &'static str, value: f64) -> Result<f64> {
     }
 }
 
-/// Checks `lo < value < hi` (open interval; use infinities for one-sided ranges).
-pub(crate) fn open_range(name: &'static str, value: f64, lo: f64, hi: f64) -> Result<f64> {
-    if value.is_finite() && value > lo && value < hi {
-        Ok(value)
-    } else {
-        Err(ModelError::InvalidParameter {
-            name,
-            value,
-            range: format!("({lo}, {hi})"),
-        })
+/// In tests: the range error of `result`, which must be an out-of-range
+/// error (or an out-of-workspace one) for the quantity `name`.
+#[cfg(test)]
+pub(crate) fn expect_range<T: std::fmt::Debug>(result: Result<T>, name: &str) -> RangeError {
+    match result {
+        Err(ref err) if err.range().is_some_and(|e| e.name == name) => *err.range().unwrap(),
+        other => panic!("expected {name} out of range, got {other:?}"),
     }
-}
-
-/// Checks `lo <= value <= hi` (closed interval).
-pub(crate) fn closed_range(name: &'static str, value: f64, lo: f64, hi: f64) -> Result<f64> {
-    if value.is_finite() && value >= lo && value <= hi {
-        Ok(value)
-    } else {
-        Err(ModelError::InvalidParameter {
-            name,
-            value,
-            range: format!("[{lo}, {hi}]"),
-        })
-    }
-}
-
-/// Checks an image size: each dimension in `[1, 16384]` px.
-pub(crate) fn image_size(width: u32, height: u32) -> Result<()> {
-    if width == 0 || height == 0 || width > 16384 || height > 16384 {
-        return Err(ModelError::InvalidParameter {
-            name: "image size",
-            value: f64::from(width.min(height)),
-            range: "[1, 16384] px in each dimension".into(),
-        });
-    }
-    Ok(())
 }

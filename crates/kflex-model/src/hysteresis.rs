@@ -7,7 +7,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{ModelError, Result, closed_range, finite, open_range};
+use crate::error::{Result, finite};
+use crate::range::Bounds;
 
 /// Parameters of the Bouc–Wen model.
 ///
@@ -47,22 +48,13 @@ impl BoucWenParams {
 
     /// Checks the parameters: `A > 0`, `β + γ > 0`, `β ≥ |γ|`, `1 ≤ n ≤ 10`, `0 ≤ α ≤ 1`.
     pub fn validate(&self) -> Result<()> {
-        open_range("bouc_wen.a", self.a, 0.0, f64::INFINITY)?;
-        open_range(
-            "bouc_wen.beta + bouc_wen.gamma",
-            self.beta + self.gamma,
-            0.0,
-            f64::INFINITY,
-        )?;
-        if self.beta.is_nan() || self.beta < self.gamma.abs() {
-            return Err(ModelError::InvalidParameter {
-                name: "bouc_wen.beta",
-                value: self.beta,
-                range: format!("[|gamma|, inf) = [{}, inf)", self.gamma.abs()),
-            });
-        }
-        closed_range("bouc_wen.n", self.n, 1.0, 10.0)?;
-        closed_range("bouc_wen.alpha", self.alpha, 0.0, 1.0)?;
+        Bounds::open(0.0, f64::INFINITY).check("bouc_wen.a", self.a)?;
+        Bounds::open(0.0, f64::INFINITY)
+            .check("bouc_wen.beta + bouc_wen.gamma", self.beta + self.gamma)?;
+        Bounds::closed_open(self.gamma.abs(), f64::INFINITY)
+            .check("bouc_wen.beta (at least |gamma|)", self.beta)?;
+        Bounds::closed(1.0, 10.0).check("bouc_wen.n", self.n)?;
+        Bounds::closed(0.0, 1.0).check("bouc_wen.alpha", self.alpha)?;
         Ok(())
     }
 
@@ -234,7 +226,7 @@ pub struct Play {
 impl Play {
     /// A play operator of half-width `half_width ≥ 0`, output starting at `y0`.
     pub fn new(half_width: f64, y0: f64) -> Result<Self> {
-        closed_range("play.half_width", half_width, 0.0, f64::MAX)?;
+        Bounds::closed(0.0, f64::MAX).check("play.half_width", half_width)?;
         finite("play.y0", y0)?;
         Ok(Self { half_width, y: y0 })
     }
@@ -265,6 +257,7 @@ impl Play {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::ModelError;
     use proptest::prelude::*;
 
     fn sine_path(amp: f64, samples_per_period: usize, periods: usize) -> Vec<f64> {
@@ -308,32 +301,64 @@ mod tests {
 
     #[test]
     fn rejects_bad_parameters() {
-        for bad in [
-            BoucWenParams {
-                a: -1.0,
-                ..BoucWenParams::normalised(1.0)
-            },
-            BoucWenParams {
-                beta: 0.1,
-                gamma: 0.5,
-                ..BoucWenParams::normalised(1.0)
-            },
-            BoucWenParams {
-                n: 0.5,
-                ..BoucWenParams::normalised(1.0)
-            },
-            BoucWenParams {
-                alpha: 1.5,
-                ..BoucWenParams::normalised(1.0)
-            },
-            BoucWenParams {
-                a: f64::NAN,
-                ..BoucWenParams::normalised(1.0)
-            },
+        use crate::error::expect_range;
+        for (bad, name) in [
+            (
+                BoucWenParams {
+                    a: -1.0,
+                    ..BoucWenParams::normalised(1.0)
+                },
+                "bouc_wen.a",
+            ),
+            (
+                BoucWenParams {
+                    beta: 0.1,
+                    gamma: 0.5,
+                    ..BoucWenParams::normalised(1.0)
+                },
+                "bouc_wen.beta (at least |gamma|)",
+            ),
+            (
+                BoucWenParams {
+                    n: 0.5,
+                    ..BoucWenParams::normalised(1.0)
+                },
+                "bouc_wen.n",
+            ),
+            (
+                BoucWenParams {
+                    alpha: 1.5,
+                    ..BoucWenParams::normalised(1.0)
+                },
+                "bouc_wen.alpha",
+            ),
+            (
+                BoucWenParams {
+                    a: f64::NAN,
+                    ..BoucWenParams::normalised(1.0)
+                },
+                "bouc_wen.a",
+            ),
         ] {
-            assert!(BoucWen::new(bad, 0.0).is_err(), "{bad:?}");
+            expect_range(BoucWen::new(bad, 0.0), name);
         }
-        assert!(Play::new(-1.0, 0.0).is_err());
+        let e = expect_range(
+            BoucWen::new(
+                BoucWenParams {
+                    beta: 0.1,
+                    gamma: 0.5,
+                    ..BoucWenParams::normalised(1.0)
+                },
+                0.0,
+            ),
+            "bouc_wen.beta (at least |gamma|)",
+        );
+        assert_eq!((e.value, e.bounds.min), (0.1, 0.5));
+        let e = expect_range(Play::new(-1.0, 0.0), "play.half_width");
+        assert_eq!(e.value, -1.0);
+        // the message names the bound in scientific notation, not 309 digits
+        let msg = Play::new(-1.0, 0.0).unwrap_err().to_string();
+        assert!(msg.ends_with("[0, 1.7976931348623157e308]"), "{msg}");
     }
 
     #[test]
@@ -341,7 +366,10 @@ mod tests {
         let mut bw = BoucWen::new(BoucWenParams::normalised(0.1), 0.0).unwrap();
         bw.advance(0.05).unwrap();
         let before = bw.clone();
-        assert!(bw.advance(f64::NAN).is_err());
+        assert!(matches!(
+            bw.advance(f64::NAN),
+            Err(ModelError::NonFinite { value, .. }) if value.is_nan()
+        ));
         assert_eq!(bw, before);
     }
 

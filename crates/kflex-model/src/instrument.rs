@@ -13,9 +13,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{ModelError, Result, closed_range, finite, open_range};
+use crate::error::Result;
 use crate::joint::JointParams;
-use crate::plant::TranslationParams;
+use crate::range::Bounds;
+use crate::workspace::{TranslationParams, check_pose};
 
 /// Shape parameters beyond the joint's (which come from [`JointParams`]). Lengths in mm.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -45,21 +46,11 @@ impl Default for InstrumentParams {
 impl InstrumentParams {
     /// Checks the parameters.
     pub fn validate(&self) -> Result<()> {
-        closed_range(
-            "channel_offset_mm.x",
-            self.channel_offset_mm[0],
-            -100.0,
-            100.0,
-        )?;
-        closed_range(
-            "channel_offset_mm.y",
-            self.channel_offset_mm[1],
-            -100.0,
-            100.0,
-        )?;
-        open_range("shaft_radius_mm", self.shaft_radius_mm, 0.0, 100.0)?;
-        open_range("jaw_radius_mm", self.jaw_radius_mm, 0.0, 100.0)?;
-        closed_range("jaw_opening_deg", self.jaw_opening_deg, 0.0, 170.0)?;
+        Bounds::closed(-100.0, 100.0).check("channel_offset_mm.x", self.channel_offset_mm[0])?;
+        Bounds::closed(-100.0, 100.0).check("channel_offset_mm.y", self.channel_offset_mm[1])?;
+        Bounds::open(0.0, 100.0).check("shaft_radius_mm", self.shaft_radius_mm)?;
+        Bounds::open(0.0, 100.0).check("jaw_radius_mm", self.jaw_radius_mm)?;
+        Bounds::closed(0.0, 170.0).check("jaw_opening_deg", self.jaw_opening_deg)?;
         Ok(())
     }
 }
@@ -75,15 +66,15 @@ pub enum Part {
     Jaw(u8),
 }
 
-/// A capsule: all points within `radius` of the segment `a`–`b` (overtube frame, mm).
+/// A capsule: all points within `radius_mm` of the segment `a_mm`–`b_mm` (overtube frame, mm).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Capsule {
-    /// Proximal end of the axis.
-    pub a: [f64; 3],
-    /// Distal end of the axis.
-    pub b: [f64; 3],
+    /// Proximal end of the axis, mm.
+    pub a_mm: [f64; 3],
+    /// Distal end of the axis, mm.
+    pub b_mm: [f64; 3],
     /// Radius, mm.
-    pub radius: f64,
+    pub radius_mm: f64,
     /// Whether the proximal end is capped by a hemisphere (false where it sits inside the channel).
     pub cap_a: bool,
     /// Which part it is.
@@ -91,12 +82,12 @@ pub struct Capsule {
 }
 
 /// The instrument's shape at one pose: capsules from the channel to the jaw tips.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct InstrumentShape {
     /// Capsules, proximal first.
     pub capsules: Vec<Capsule>,
     /// The tool tip (mid-point between the jaw tips), overtube frame, mm.
-    pub tip: [f64; 3],
+    pub tip_mm: [f64; 3],
 }
 
 /// Builds shapes from (θ, d), checking both against the workspace.
@@ -122,14 +113,8 @@ impl Instrument {
     ) -> Result<Self> {
         joint.validate()?;
         params.validate()?;
-        closed_range("n_segments", f64::from(n_segments), 1.0, 16.0)?;
-        closed_range("translation.min_mm", translation.min_mm, 0.0, 1e3)?;
-        closed_range(
-            "translation.max_mm",
-            translation.max_mm,
-            translation.min_mm,
-            1e3,
-        )?;
+        Bounds::closed(1.0, 16.0).check("n_segments", f64::from(n_segments))?;
+        translation.validate()?;
         Ok(Self {
             joint,
             params,
@@ -153,7 +138,7 @@ impl Instrument {
     pub fn shape(&self, theta_deg: f64, translation_mm: f64) -> Result<InstrumentShape> {
         let mut out = InstrumentShape {
             capsules: Vec::with_capacity(2 * self.n_segments as usize + 3),
-            tip: [0.0; 3],
+            tip_mm: [0.0; 3],
         };
         self.shape_into(theta_deg, translation_mm, &mut out)?;
         Ok(out)
@@ -166,26 +151,13 @@ impl Instrument {
         translation_mm: f64,
         out: &mut InstrumentShape,
     ) -> Result<()> {
-        finite("theta_deg", theta_deg)?;
-        finite("translation_mm", translation_mm)?;
-        let max = self.joint.max_theta_deg;
-        if theta_deg.abs() > max {
-            return Err(ModelError::OutOfWorkspace {
-                name: "theta_deg",
-                value: theta_deg,
-                min: -max,
-                max,
-            });
-        }
-        let t = &self.translation;
-        if translation_mm < t.min_mm || translation_mm > t.max_mm {
-            return Err(ModelError::OutOfWorkspace {
-                name: "translation_mm",
-                value: translation_mm,
-                min: t.min_mm,
-                max: t.max_mm,
-            });
-        }
+        check_pose(
+            self.joint.max_theta_deg,
+            &self.translation,
+            "theta_deg",
+            theta_deg,
+            translation_mm,
+        )?;
         let [ox, oy] = self.params.channel_offset_mm;
         let two_n = 2 * self.n_segments as usize;
         let phi = theta_deg.to_radians() / two_n as f64;
@@ -193,9 +165,9 @@ impl Instrument {
         out.capsules.clear();
         let mut p = [ox, oy, translation_mm];
         out.capsules.push(Capsule {
-            a: [ox, oy, 0.0],
-            b: p,
-            radius: self.params.shaft_radius_mm,
+            a_mm: [ox, oy, 0.0],
+            b_mm: p,
+            radius_mm: self.params.shaft_radius_mm,
             cap_a: false,
             part: Part::Shaft,
         });
@@ -204,9 +176,9 @@ impl Instrument {
             heading += phi;
             let next = [p[0] + l * heading.sin(), p[1], p[2] + l * heading.cos()];
             out.capsules.push(Capsule {
-                a: p,
-                b: next,
-                radius: self.joint.link_radius_mm,
+                a_mm: p,
+                b_mm: next,
+                radius_mm: self.joint.link_radius_mm,
                 cap_a: true,
                 part: Part::Link(j as u8),
             });
@@ -219,14 +191,14 @@ impl Instrument {
             let dir = [s * half.cos(), side * half.sin(), c * half.cos()];
             let end = [p[0] + lt * dir[0], p[1] + lt * dir[1], p[2] + lt * dir[2]];
             out.capsules.push(Capsule {
-                a: p,
-                b: end,
-                radius: self.params.jaw_radius_mm,
+                a_mm: p,
+                b_mm: end,
+                radius_mm: self.params.jaw_radius_mm,
                 cap_a: true,
                 part: Part::Jaw(k),
             });
         }
-        out.tip = [p[0] + lt * half.cos() * s, p[1], p[2] + lt * half.cos() * c];
+        out.tip_mm = [p[0] + lt * half.cos() * s, p[1], p[2] + lt * half.cos() * c];
         Ok(())
     }
 }

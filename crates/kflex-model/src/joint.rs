@@ -17,8 +17,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Result, closed_range, open_range};
+use crate::error::Result;
 use crate::kinematics::TendonGeometry;
+use crate::range::Bounds;
 use crate::transmission::{Distal, TendonSheath};
 
 /// Which joint model the plant uses.
@@ -49,7 +50,7 @@ pub struct JointParams {
     /// Mass of the tool, g.
     pub tool_mass_g: f64,
     /// Gravity in the instrument frame (`z` along the instrument, bending toward `+x`), m/s².
-    pub gravity_m_s2: [f64; 3],
+    pub gravity_m_per_s2: [f64; 3],
     /// External force on the tool tip (tool–tissue contact), instrument frame, N.
     pub tip_load_n: [f64; 3],
     /// Mechanical range of the bend: hard stops at ±this, deg.
@@ -65,7 +66,7 @@ impl Default for JointParams {
             link_mass_g: 0.2,
             tool_length_mm: 8.0,
             tool_mass_g: 0.8,
-            gravity_m_s2: [-9.81, 0.0, 0.0],
+            gravity_m_per_s2: [-9.81, 0.0, 0.0],
             tip_load_n: [0.0; 3],
             max_theta_deg: 120.0,
         }
@@ -75,46 +76,44 @@ impl Default for JointParams {
 impl JointParams {
     /// Checks the parameters against their physical ranges.
     pub fn validate(&self) -> Result<()> {
-        open_range(
+        Bounds::open(0.0, 1e6).check(
             "contact_stiffness_nmm_per_rad",
             self.contact_stiffness_nmm_per_rad,
-            0.0,
-            1e6,
         )?;
-        open_range("link_length_mm", self.link_length_mm, 0.0, 1e3)?;
-        open_range("link_radius_mm", self.link_radius_mm, 0.0, 1e3)?;
-        open_range("link_mass_g", self.link_mass_g, 0.0, 1e4)?;
-        closed_range("tool_length_mm", self.tool_length_mm, 0.0, 1e3)?;
-        closed_range("tool_mass_g", self.tool_mass_g, 0.0, 1e4)?;
+        Bounds::open(0.0, 1e3).check("link_length_mm", self.link_length_mm)?;
+        Bounds::open(0.0, 1e3).check("link_radius_mm", self.link_radius_mm)?;
+        Bounds::open(0.0, 1e4).check("link_mass_g", self.link_mass_g)?;
+        Bounds::closed(0.0, 1e3).check("tool_length_mm", self.tool_length_mm)?;
+        Bounds::closed(0.0, 1e4).check("tool_mass_g", self.tool_mass_g)?;
         for (name, v) in [
-            ("gravity_m_s2.x", self.gravity_m_s2[0]),
-            ("gravity_m_s2.y", self.gravity_m_s2[1]),
-            ("gravity_m_s2.z", self.gravity_m_s2[2]),
+            ("gravity_m_per_s2.x", self.gravity_m_per_s2[0]),
+            ("gravity_m_per_s2.y", self.gravity_m_per_s2[1]),
+            ("gravity_m_per_s2.z", self.gravity_m_per_s2[2]),
         ] {
-            closed_range(name, v, -100.0, 100.0)?;
+            Bounds::closed(-100.0, 100.0).check(name, v)?;
         }
         for (name, v) in [
             ("tip_load_n.x", self.tip_load_n[0]),
             ("tip_load_n.y", self.tip_load_n[1]),
             ("tip_load_n.z", self.tip_load_n[2]),
         ] {
-            closed_range(name, v, -100.0, 100.0)?;
+            Bounds::closed(-100.0, 100.0).check(name, v)?;
         }
-        closed_range("max_theta_deg", self.max_theta_deg, 90.0, 170.0)?;
+        Bounds::closed(90.0, 170.0).check("max_theta_deg", self.max_theta_deg)?;
         Ok(())
     }
 }
 
 /// Position of a point of the chain in the bending plane: (x, z) in mm.
-pub type PlanePoint = [f64; 2];
+pub(crate) type PlanePoint = [f64; 2];
 
 /// Upper bound on `2n` supported without allocation.
-pub const MAX_CONTACTS: usize = 32;
+pub(crate) const MAX_CONTACTS: usize = 32;
 
 /// Generalised force of gravity and tip load along θ (N·mm/rad), with all
 /// `2n` contacts at `φ = θ/2n`: `(1/2n) Σ_j τ_j`, `τ_j` the moment about contact `j`.
-pub fn external_generalised_force(joint: &JointParams, two_n: usize, theta: f64) -> f64 {
-    let [gx, _, gz] = joint.gravity_m_s2;
+pub(crate) fn external_generalised_force(joint: &JointParams, two_n: usize, theta: f64) -> f64 {
+    let [gx, _, gz] = joint.gravity_m_per_s2;
     let [fx, _, fz] = joint.tip_load_n;
     if gx == 0.0 && gz == 0.0 && fx == 0.0 && fz == 0.0 {
         return 0.0;
@@ -170,7 +169,7 @@ fn balance(
     let two_n = 2.0 * f64::from(geometry.n_segments);
     let phi = theta / two_n;
     let (s, c) = phi.sin_cos();
-    let p = geometry.differential_stroke(theta);
+    let p = geometry.differential_stroke_mm(theta);
     let arm = geometry.tendon_offset_mm * c;
     let distal = sheath.distal(p);
     let (f, t_sum) = (distal.force_n, distal.tension_sum_n);
@@ -193,7 +192,7 @@ fn balance(
 /// load that pushes back along the instrument hard enough to overcome the
 /// joint's stiffness, no equilibrium stays near the last angle and the joint
 /// snaps through to the next one (buckling), as a real one would.
-pub fn solve_analytic(
+pub(crate) fn solve_analytic(
     geometry: &TendonGeometry,
     joint: &JointParams,
     sheath: &TendonSheath,
@@ -223,7 +222,9 @@ mod tests {
         let geometry = TendonGeometry::default();
         let joint = JointParams::default();
         let mut sheath = TendonSheath::new(SheathParams::default(), 90.0).unwrap();
-        sheath.advance(geometry.differential_stroke(0.6)).unwrap();
+        sheath
+            .advance(geometry.differential_stroke_mm(0.6))
+            .unwrap();
         let theta = solve_analytic(&geometry, &joint, &sheath, 0.0);
         assert!(theta > 0.0 && theta < 0.6, "{theta}");
         // a root: the balance changes sign across it
@@ -238,13 +239,15 @@ mod tests {
     fn gravity_opposing_the_bend_lowers_it() {
         let geometry = TendonGeometry::default();
         let mut sheath = TendonSheath::new(SheathParams::default(), 0.0).unwrap();
-        sheath.advance(geometry.differential_stroke(0.6)).unwrap();
+        sheath
+            .advance(geometry.differential_stroke_mm(0.6))
+            .unwrap();
         let none = JointParams {
-            gravity_m_s2: [0.0; 3],
+            gravity_m_per_s2: [0.0; 3],
             ..JointParams::default()
         };
         let heavy = JointParams {
-            gravity_m_s2: [-9.81, 0.0, 0.0],
+            gravity_m_per_s2: [-9.81, 0.0, 0.0],
             tool_mass_g: 50.0,
             ..none
         };
@@ -264,7 +267,7 @@ mod tests {
         };
         let mut sheath = TendonSheath::new(SheathParams::default(), 0.0).unwrap();
         sheath
-            .advance(geometry.differential_stroke(80f64.to_radians()))
+            .advance(geometry.differential_stroke_mm(80f64.to_radians()))
             .unwrap();
         let theta = solve_analytic(&geometry, &joint, &sheath, 60f64.to_radians());
         assert_eq!(theta, joint.max_theta_deg.to_radians());

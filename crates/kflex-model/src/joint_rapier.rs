@@ -23,6 +23,7 @@ use rapier3d::prelude::*;
 use crate::error::{ModelError, Result};
 use crate::joint::JointParams;
 use crate::kinematics::TendonGeometry;
+use crate::range::Bounds;
 use crate::transmission::TendonSheath;
 
 /// Index of a revolute joint's angle in rapier's 6-DoF spatial coordinates:
@@ -32,11 +33,11 @@ const FREE_ANGLE: usize = 3;
 
 /// Integration settings of the rapier joint.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RapierSettings {
+pub(crate) struct RapierSettings {
     /// Internal time step, s.
     pub dt_s: f64,
     /// The chain counts as at rest when every joint rate is below this, rad/s.
-    pub rest_rate_rad_s: f64,
+    pub rest_rate_rad_per_s: f64,
     /// Internal steps at most per plant tick.
     pub max_steps_per_tick: u32,
 }
@@ -45,14 +46,14 @@ impl Default for RapierSettings {
     fn default() -> Self {
         Self {
             dt_s: 1e-3,
-            rest_rate_rad_s: 2e-4,
+            rest_rate_rad_per_s: 2e-4,
             max_steps_per_tick: 2000,
         }
     }
 }
 
 /// The multibody chain and its world.
-pub struct RapierJoint {
+pub(crate) struct RapierJoint {
     world: PhysicsWorld,
     base: RigidBodyHandle,
     links: Vec<RigidBodyHandle>,
@@ -77,18 +78,31 @@ fn v3(a: [f64; 3]) -> RVec {
 }
 
 impl RapierJoint {
-    /// Builds the chain straight (θ = 0). Parameters must already be validated.
-    pub fn new(
+    /// Builds the chain straight (θ = 0).
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] when the geometry, the joint or the
+    /// settings are out of range (checked here, not assumed).
+    pub(crate) fn new(
         geometry: TendonGeometry,
         joint: JointParams,
         sheath: &TendonSheath,
         settings: RapierSettings,
-    ) -> Self {
+    ) -> Result<Self> {
+        joint.validate()?;
+        geometry.validate(joint.max_theta_deg.to_radians())?;
+        Bounds::open(0.0, 1.0).check("rapier dt_s", settings.dt_s)?;
+        Bounds::open(0.0, f64::INFINITY)
+            .check("rapier rest_rate_rad_per_s", settings.rest_rate_rad_per_s)?;
+        Bounds::closed(1.0, 1e7).check(
+            "rapier max_steps_per_tick",
+            f64::from(settings.max_steps_per_tick),
+        )?;
         let two_n = 2 * geometry.n_segments as usize;
         let l = (joint.link_length_mm * 1e-3) as f32;
         let r = (joint.link_radius_mm * 1e-3) as f32;
         let mut world = PhysicsWorld::new();
-        world.gravity = v3(joint.gravity_m_s2);
+        world.gravity = v3(joint.gravity_m_per_s2);
         world.integration_parameters.dt = settings.dt_s as f32;
         let base = world.bodies.insert(RigidBodyBuilder::fixed());
         let mut links = Vec::with_capacity(two_n);
@@ -145,7 +159,7 @@ impl RapierJoint {
             steps_total: 0,
         };
         out.configure_dofs(sheath);
-        out
+        Ok(out)
     }
 
     /// Springs, armature and damping on every contact (see the module docs for the choice).
@@ -154,7 +168,7 @@ impl RapierJoint {
         let k_phi = self.joint.contact_stiffness_nmm_per_rad * 1e-3; // N·m/rad
         // stiffest mode: backbone plus the tendon coupling all contacts (rank one)
         let d = self.geometry.tendon_offset_mm * 1e-3;
-        let k_tendon = sheath.taut_stiffness() * 1e3 * d * d * two_n; // N·m/rad
+        let k_tendon = sheath.taut_stiffness_n_per_mm() * 1e3 * d * d * two_n; // N·m/rad
         let k_max = k_phi + k_tendon;
         let omega_max = 0.5 / self.settings.dt_s;
         let armature = k_max / (omega_max * omega_max);
@@ -197,13 +211,6 @@ impl RapierJoint {
                 .unwrap_or(0.0);
         }
         n
-    }
-
-    /// Contact angles φ_j, rad.
-    pub fn contact_angles(&self) -> Vec<f64> {
-        let mut phis = [0.0; crate::joint::MAX_CONTACTS];
-        let n = self.read_angles(&mut phis);
-        phis[..n].to_vec()
     }
 
     /// Total bend θ = Σ φ_j, rad.
@@ -275,7 +282,7 @@ impl RapierJoint {
             if !rate.is_finite() {
                 return Err(ModelError::Diverged { what: "joint rate" });
             }
-            if step > 2 && rate < self.settings.rest_rate_rad_s {
+            if step > 2 && rate < self.settings.rest_rate_rad_per_s {
                 break;
             }
         }

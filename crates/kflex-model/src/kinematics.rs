@@ -17,7 +17,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{ModelError, Result, closed_range, open_range};
+use crate::error::{ModelError, Result};
+use crate::range::{Bounds, RangeError};
 
 /// Geometry of the tendon-driven continuum joint (Eq. 1). Lengths in mm.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -50,19 +51,20 @@ impl TendonGeometry {
     /// `[-max_theta, max_theta]` (radians), which the inverse needs:
     /// `dΔL_a/dθ = (R−B) sin φ − d_t cos φ < 0 ⇔ tan φ < d_t/(R−B)`.
     pub fn validate(&self, max_theta_rad: f64) -> Result<()> {
-        closed_range("n_segments", f64::from(self.n_segments), 1.0, 16.0)?;
-        open_range("r_mm", self.r_mm, 0.0, 100.0)?;
-        closed_range("b_mm", self.b_mm, 0.0, self.r_mm)?;
-        open_range("tendon_offset_mm", self.tendon_offset_mm, 0.0, 100.0)?;
+        Bounds::closed(1.0, 16.0).check("n_segments", f64::from(self.n_segments))?;
+        Bounds::open(0.0, 100.0).check("r_mm", self.r_mm)?;
+        Bounds::closed(0.0, self.r_mm).check("b_mm", self.b_mm)?;
+        Bounds::open(0.0, 100.0).check("tendon_offset_mm", self.tendon_offset_mm)?;
         let phi_max = max_theta_rad / self.two_n();
         let limit = (self.tendon_offset_mm / (self.r_mm - self.b_mm)).atan();
         if phi_max >= limit || phi_max >= std::f64::consts::FRAC_PI_2 {
             let theta_limit_deg = (2.0 * self.two_n() * limit).to_degrees() / 2.0;
-            return Err(ModelError::InvalidParameter {
-                name: "joint range (Eq. 1 not monotone over it)",
+            return Err(RangeError {
+                name: "max_theta_deg (Eq. 1 must be monotone over the joint's range)",
                 value: max_theta_rad.to_degrees(),
-                range: format!("(0, {theta_limit_deg:.1}) deg for this geometry"),
-            });
+                bounds: Bounds::open(0.0, theta_limit_deg),
+            }
+            .into());
         }
         Ok(())
     }
@@ -72,8 +74,8 @@ impl TendonGeometry {
     }
 
     /// Eq. 1: change of the length of tendon `a`'s path through the joint, mm, at bend `theta` (rad).
-    pub fn delta_l_a(&self, theta: f64) -> f64 {
-        let phi = theta / self.two_n();
+    pub fn delta_l_a_mm(&self, theta_rad: f64) -> f64 {
+        let phi = theta_rad / self.two_n();
         self.two_n()
             * (self.r_mm
                 - self.tendon_offset_mm * phi.sin()
@@ -82,31 +84,31 @@ impl TendonGeometry {
     }
 
     /// Eq. 2: `ΔL_b(θ) = ΔL_a(−θ)`, mm.
-    pub fn delta_l_b(&self, theta: f64) -> f64 {
-        self.delta_l_a(-theta)
+    pub fn delta_l_b_mm(&self, theta_rad: f64) -> f64 {
+        self.delta_l_a_mm(-theta_rad)
     }
 
     /// `dΔL_a/dθ`, mm/rad.
-    pub fn delta_l_a_slope(&self, theta: f64) -> f64 {
-        let phi = theta / self.two_n();
+    pub fn delta_l_a_slope_mm_per_rad(&self, theta_rad: f64) -> f64 {
+        let phi = theta_rad / self.two_n();
         (self.r_mm - self.b_mm) * phi.sin() - self.tendon_offset_mm * phi.cos()
     }
 
     /// Differential stroke `s(θ) = (ΔL_b − ΔL_a)/2 = 2n d_t sin(θ/2n)`, mm: how far
     /// tendon `a` is pulled in, and `b` paid out, relative to their mean.
-    pub fn differential_stroke(&self, theta: f64) -> f64 {
-        self.two_n() * self.tendon_offset_mm * (theta / self.two_n()).sin()
+    pub fn differential_stroke_mm(&self, theta_rad: f64) -> f64 {
+        self.two_n() * self.tendon_offset_mm * (theta_rad / self.two_n()).sin()
     }
 
     /// `ds/dθ = d_t cos(θ/2n)`, mm/rad: the moment arm of the differential tendon force.
-    pub fn stroke_slope(&self, theta: f64) -> f64 {
-        self.tendon_offset_mm * (theta / self.two_n()).cos()
+    pub fn stroke_slope_mm_per_rad(&self, theta_rad: f64) -> f64 {
+        self.tendon_offset_mm * (theta_rad / self.two_n()).cos()
     }
 
     /// Common-mode change `(ΔL_a + ΔL_b)/2 = 2n (R−B)(1 − cos(θ/2n))`, mm: both
     /// tendon paths lengthen as the joint bends (the motors pay tendon out).
-    pub fn common_mode(&self, theta: f64) -> f64 {
-        self.two_n() * (self.r_mm - self.b_mm) * (1.0 - (theta / self.two_n()).cos())
+    pub fn common_mode_mm(&self, theta_rad: f64) -> f64 {
+        self.two_n() * (self.r_mm - self.b_mm) * (1.0 - (theta_rad / self.two_n()).cos())
     }
 
     /// Inverse of Eq. 1: the bend θ (rad, within `[-max_theta, max_theta]`) at which
@@ -115,11 +117,11 @@ impl TendonGeometry {
     /// Eq. 1 is strictly decreasing over a validated range, so a safeguarded
     /// Newton iteration on the bracket ([`crate::numeric::root_decreasing`])
     /// converges for every reachable value.
-    pub fn theta_from_delta_l_a(&self, delta_l_a_mm: f64, max_theta: f64) -> Result<f64> {
+    pub fn theta_rad_from_delta_l_a(&self, delta_l_a_mm: f64, max_theta_rad: f64) -> Result<f64> {
         crate::error::finite("delta_l_a_mm", delta_l_a_mm)?;
-        let (lo, hi) = (-max_theta, max_theta);
+        let (lo, hi) = (-max_theta_rad, max_theta_rad);
         // decreasing: f(lo) is the largest value, f(hi) the smallest
-        let (f_lo, f_hi) = (self.delta_l_a(lo), self.delta_l_a(hi));
+        let (f_lo, f_hi) = (self.delta_l_a_mm(lo), self.delta_l_a_mm(hi));
         if delta_l_a_mm > f_lo || delta_l_a_mm < f_hi {
             return Err(ModelError::Unreachable {
                 delta_l_mm: delta_l_a_mm,
@@ -128,7 +130,12 @@ impl TendonGeometry {
             });
         }
         let theta = crate::numeric::root_decreasing(
-            |t| (self.delta_l_a(t) - delta_l_a_mm, self.delta_l_a_slope(t)),
+            |t| {
+                (
+                    self.delta_l_a_mm(t) - delta_l_a_mm,
+                    self.delta_l_a_slope_mm_per_rad(t),
+                )
+            },
             lo,
             hi,
             -delta_l_a_mm / self.tendon_offset_mm, // small-angle guess
@@ -138,7 +145,7 @@ impl TendonGeometry {
     }
 
     /// Inverse of the differential stroke: θ (rad) from `s` (mm), closed form.
-    pub fn theta_from_stroke(&self, stroke_mm: f64) -> Option<f64> {
+    pub fn theta_rad_from_stroke(&self, stroke_mm: f64) -> Option<f64> {
         let x = stroke_mm / (self.two_n() * self.tendon_offset_mm);
         (x.abs() <= 1.0).then(|| self.two_n() * x.asin())
     }
@@ -147,6 +154,7 @@ impl TendonGeometry {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::expect_range;
     use proptest::prelude::*;
 
     const MAX: f64 = 120.0 * std::f64::consts::PI / 180.0;
@@ -154,8 +162,8 @@ mod tests {
     #[test]
     fn zero_bend_changes_nothing() {
         let g = TendonGeometry::default();
-        assert_eq!(g.delta_l_a(0.0), 0.0);
-        assert_eq!(g.differential_stroke(0.0), 0.0);
+        assert_eq!(g.delta_l_a_mm(0.0), 0.0);
+        assert_eq!(g.differential_stroke_mm(0.0), 0.0);
         assert!(g.validate(MAX).is_ok());
     }
 
@@ -163,7 +171,7 @@ mod tests {
     fn small_angle_slope_is_minus_the_offset() {
         let g = TendonGeometry::default();
         let h = 1e-6;
-        let slope = (g.delta_l_a(h) - g.delta_l_a(-h)) / (2.0 * h);
+        let slope = (g.delta_l_a_mm(h) - g.delta_l_a_mm(-h)) / (2.0 * h);
         assert!((slope + g.tendon_offset_mm).abs() < 1e-6, "{slope}");
     }
 
@@ -175,42 +183,49 @@ mod tests {
             tendon_offset_mm: 0.5,
             n_segments: 1,
         };
-        assert!(g.validate(MAX).is_err());
+        let e = expect_range(
+            g.validate(MAX),
+            "max_theta_deg (Eq. 1 must be monotone over the joint's range)",
+        );
+        // tan(φ) < d_t/(R − B) = 0.1 with 2n = 2 contacts: θ < 2·atan(0.1) = 11.4°
+        assert!((e.bounds.max - 2.0 * 0.1f64.atan().to_degrees()).abs() < 1e-9);
+        assert!((e.value - MAX.to_degrees()).abs() < 1e-9);
         let g = TendonGeometry {
             n_segments: 0,
             ..Default::default()
         };
-        assert!(matches!(
-            g.validate(MAX),
-            Err(ModelError::InvalidParameter {
-                name: "n_segments",
-                ..
-            })
-        ));
+        assert_eq!(expect_range(g.validate(MAX), "n_segments").value, 0.0);
         let g = TendonGeometry {
             b_mm: 4.0,
             ..Default::default()
         };
-        assert!(g.validate(MAX).is_err());
+        let e = expect_range(g.validate(MAX), "b_mm");
+        assert_eq!((e.value, e.bounds.max), (4.0, 3.0));
     }
 
     #[test]
     fn unreachable_length_is_an_error() {
         let g = TendonGeometry::default();
         assert!(matches!(
-            g.theta_from_delta_l_a(100.0, MAX),
+            g.theta_rad_from_delta_l_a(100.0, MAX),
             Err(ModelError::Unreachable { .. })
         ));
-        assert!(g.theta_from_delta_l_a(f64::NAN, MAX).is_err());
+        assert!(matches!(
+            g.theta_rad_from_delta_l_a(f64::NAN, MAX),
+            Err(ModelError::NonFinite {
+                name: "delta_l_a_mm",
+                ..
+            })
+        ));
     }
 
     proptest! {
         #[test]
         fn inverse_of_forward_is_identity(theta in -MAX..MAX) {
             let g = TendonGeometry::default();
-            let back = g.theta_from_delta_l_a(g.delta_l_a(theta), MAX).unwrap();
+            let back = g.theta_rad_from_delta_l_a(g.delta_l_a_mm(theta), MAX).unwrap();
             prop_assert!((back - theta).abs() < 1e-9, "{theta} -> {back}");
-            let back = g.theta_from_stroke(g.differential_stroke(theta)).unwrap();
+            let back = g.theta_rad_from_stroke(g.differential_stroke_mm(theta)).unwrap();
             prop_assert!((back - theta).abs() < 1e-9);
         }
 
@@ -219,18 +234,18 @@ mod tests {
             let g = TendonGeometry::default();
             prop_assume!((a - b).abs() > 1e-9);
             let (lo, hi) = if a < b { (a, b) } else { (b, a) };
-            prop_assert!(g.delta_l_a(lo) > g.delta_l_a(hi));
+            prop_assert!(g.delta_l_a_mm(lo) > g.delta_l_a_mm(hi));
         }
 
         #[test]
         fn antagonist_is_the_mirror(theta in -MAX..MAX) {
             let g = TendonGeometry::default();
-            prop_assert!((g.delta_l_b(theta) - g.delta_l_a(-theta)).abs() < 1e-15);
+            prop_assert!((g.delta_l_b_mm(theta) - g.delta_l_a_mm(-theta)).abs() < 1e-15);
             // the sum is the common mode, the half-difference is the stroke
-            let sum = 0.5 * (g.delta_l_a(theta) + g.delta_l_b(theta));
-            prop_assert!((sum - g.common_mode(theta)).abs() < 1e-12);
-            let diff = 0.5 * (g.delta_l_b(theta) - g.delta_l_a(theta));
-            prop_assert!((diff - g.differential_stroke(theta)).abs() < 1e-12);
+            let sum = 0.5 * (g.delta_l_a_mm(theta) + g.delta_l_b_mm(theta));
+            prop_assert!((sum - g.common_mode_mm(theta)).abs() < 1e-12);
+            let diff = 0.5 * (g.delta_l_b_mm(theta) - g.delta_l_a_mm(theta));
+            prop_assert!((diff - g.differential_stroke_mm(theta)).abs() < 1e-12);
         }
     }
 }

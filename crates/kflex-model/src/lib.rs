@@ -4,34 +4,68 @@
 //! paper (Baek et al., RA-L 2020): the bending joint's tendon kinematics
 //! (Eq. 1–2), hysteresis operators (Bouc–Wen, play), the tendon-sheath
 //! transmission whose friction grows with the sheath's bend (capstan law), the
-//! joint's mechanics (analytic, or a rapier3d multibody chain), and command
-//! trajectories. [`Plant`] puts them together; it is the ground truth of the
+//! joint's mechanics (analytic, or a rapier3d multibody chain), command
+//! trajectories, and the endoscope camera (instrument geometry, pinhole
+//! camera, silhouette rasterizer, shaded frames over clinical backgrounds).
+//! [`Plant`] puts the mechanics together; it is the ground truth of the
 //! testbed and is never read by the estimators.
+//!
+//! It also owns the small types every kflex crate shares: [`Command`],
+//! [`Mask`], [`Roi`], and the range check [`Bounds`] with its error
+//! [`RangeError`].
 //!
 //! ```
 //! use kflex_model::{Command, Plant, PlantConfig};
 //! let mut plant = Plant::new(PlantConfig { sheath_deg: 180.0, ..PlantConfig::default() })?;
-//! let state = plant.step(Command { theta_deg: 30.0, translation_mm: 5.0 }, 0.01)?;
-//! assert!(state.theta_deg < 30.0); // the joint lags the command
+//! let state = plant.step(Command { theta_c_deg: 30.0, translation_mm: 5.0 }, 0.01)?;
+//! assert!(state.theta_a_deg < 30.0); // the joint lags the command
 //! # Ok::<(), kflex_model::ModelError>(())
 //! ```
+//!
+//! ## Names and units
+//!
+//! The paper's angles keep its names: `theta_d` the desired angle from the
+//! master, `theta_c` the command sent to the plant (Eq. 3), `theta_a` the
+//! actual angle, `theta_hat` an estimate. A geometric function that takes
+//! any bend says plain `theta`.
+//!
+//! Every physical quantity carries its unit as a suffix, spelled one way:
+//! `_deg`, `_rad`, `_mm`, `_m`, `_s`, `_hz`, `_g`, `_n` (newton), `_nmm`
+//! (newton-millimetre); a quotient joins its units with `_per_`
+//! (`_n_per_mm`, `_nmm_per_rad`, `_deg_per_s`, `_mm_per_s`, `_m_per_s2`).
+//! Pixel quantities (image sizes, pixel coordinates, the intrinsics `fx`,
+//! `fy`, `cx`, `cy`) are in pixels and carry no suffix; dimensionless
+//! quantities (ratios, friction coefficients, normalised states) none either.
+//!
+//! ## Cargo features
+//!
+//! * `multibody` (default): the joint as a rapier3d multibody chain
+//!   ([`JointModelKind::Rapier`]). Without it, kflex-model compiles none of
+//!   rapier3d, parry3d or their dependencies; the analytic joint, the plant,
+//!   the camera and every shared type stay, and a configuration that asks
+//!   for the rapier joint is refused with [`ModelError::FeatureDisabled`].
 #![doc = include_str!("../CALIBRATION.md")]
 #![warn(missing_docs)]
 
-pub mod calibration;
-pub mod camera;
-pub mod error;
-pub mod hysteresis;
-pub mod instrument;
-pub mod joint;
-pub mod joint_rapier;
-pub mod kinematics;
-pub mod numeric;
-pub mod plant;
-pub mod raster;
-pub mod scene;
-pub mod trajectory;
-pub mod transmission;
+mod calibration;
+mod camera;
+mod error;
+mod hysteresis;
+mod instrument;
+mod joint;
+#[cfg(feature = "multibody")]
+mod joint_rapier;
+mod kinematics;
+mod mask;
+mod numeric;
+mod plant;
+mod range;
+mod raster;
+mod roi;
+mod scene;
+mod trajectory;
+mod transmission;
+mod workspace;
 
 pub use camera::{Camera, Intrinsics};
 pub use error::{ModelError, Result};
@@ -39,7 +73,12 @@ pub use hysteresis::{BoucWen, BoucWenParams, Play};
 pub use instrument::{Capsule, Instrument, InstrumentParams, InstrumentShape, Part};
 pub use joint::{JointModelKind, JointParams};
 pub use kinematics::TendonGeometry;
-pub use plant::{AuroraNoise, Command, Plant, PlantConfig, PlantState, TranslationParams};
-pub use raster::Mask;
+pub use mask::{MAX_IMAGE_SIDE, Mask};
+pub use plant::{AuroraNoise, Command, Plant, PlantConfig, PlantState};
+pub use range::{Bounds, Num, RangeError};
+pub use raster::Rasterizer;
+pub use roi::Roi;
+pub use scene::{Background, Frame, FrameParams, Occlusion, SceneRenderer};
 pub use trajectory::{Sample, Sine, Trajectory, TrajectorySampler};
 pub use transmission::{Distal, SheathParams, TendonSheath, TendonTensions};
+pub use workspace::{PoseRange, TranslationParams};

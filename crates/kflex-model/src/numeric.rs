@@ -8,7 +8,7 @@
 /// If `f` stays positive up to `hi` the answer is `hi`; if it is negative from
 /// `lo`, `lo`: the bounds act as stops. The answer is always within `tol` of a
 /// sign change of `f` (or a stop), never the middle of an unresolved bracket.
-pub fn root_decreasing(
+pub(crate) fn root_decreasing(
     f: impl Fn(f64) -> (f64, f64),
     lo: f64,
     hi: f64,
@@ -58,7 +58,7 @@ pub fn root_decreasing(
 /// `[lo, hi]`: quasi-static path following. Steps of `step` doubling until the
 /// sign changes, then [`root_decreasing`] on that bracket. Returns the bound
 /// reached if there is no sign change before it.
-pub fn follow_root(
+pub(crate) fn follow_root(
     f: impl Fn(f64) -> (f64, f64),
     lo: f64,
     hi: f64,

@@ -13,41 +13,22 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 
-use crate::error::{ModelError, Result, closed_range, finite, open_range};
+use crate::error::{ModelError, Result};
 use crate::joint::{JointModelKind, JointParams, solve_analytic};
+#[cfg(feature = "multibody")]
 use crate::joint_rapier::{RapierJoint, RapierSettings};
 use crate::kinematics::TendonGeometry;
+use crate::range::Bounds;
 use crate::transmission::{SheathParams, TendonSheath, TendonTensions};
+use crate::workspace::{TranslationParams, check_pose};
 
 /// The two degrees of freedom the paper commands.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Command {
-    /// Bending θ, deg.
-    pub theta_deg: f64,
+    /// Bend θ_c sent to the plant, deg (Eq. 3's compensated command; θ_d when uncompensated).
+    pub theta_c_deg: f64,
     /// Translation d along the overtube, mm.
     pub translation_mm: f64,
-}
-
-/// Limits and speed of the translation stage (no hysteresis: a stiff lead screw).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct TranslationParams {
-    /// Shortest extension out of the overtube, mm.
-    pub min_mm: f64,
-    /// Longest extension, mm.
-    pub max_mm: f64,
-    /// Speed limit of the stage, mm/s.
-    pub max_speed_mm_s: f64,
-}
-
-impl Default for TranslationParams {
-    fn default() -> Self {
-        Self {
-            min_mm: 0.0,
-            max_mm: 40.0,
-            max_speed_mm_s: 20.0,
-        }
-    }
 }
 
 /// Gaussian measurement noise of an electromagnetic tracker like NDI Aurora.
@@ -114,14 +95,11 @@ impl PlantConfig {
         self.geometry
             .validate(self.joint.max_theta_deg.to_radians())?;
         self.sheath.validate()?;
-        closed_range("sheath_deg", self.sheath_deg, 0.0, 3600.0)?;
-        let t = &self.translation;
-        closed_range("translation.min_mm", t.min_mm, 0.0, 1e3)?;
-        closed_range("translation.max_mm", t.max_mm, t.min_mm, 1e3)?;
-        open_range("translation.max_speed_mm_s", t.max_speed_mm_s, 0.0, 1e4)?;
+        Bounds::closed(0.0, 3600.0).check("sheath_deg", self.sheath_deg)?;
+        self.translation.validate()?;
         if let Some(n) = self.noise {
-            closed_range("noise.theta_std_deg", n.theta_std_deg, 0.0, 90.0)?;
-            closed_range("noise.translation_std_mm", n.translation_std_mm, 0.0, 100.0)?;
+            Bounds::closed(0.0, 90.0).check("noise.theta_std_deg", n.theta_std_deg)?;
+            Bounds::closed(0.0, 100.0).check("noise.translation_std_mm", n.translation_std_mm)?;
         }
         Ok(())
     }
@@ -130,7 +108,7 @@ impl PlantConfig {
     /// factors `1 + rel_std · N(0, 1)` (clamped to [0.5, 1.5]): unit-to-unit and
     /// day-to-day spread for repeated experiments. Deterministic in `seed`.
     pub fn perturbed(&self, seed: u64, rel_std: f64) -> Result<PlantConfig> {
-        closed_range("rel_std", rel_std, 0.0, 0.5)?;
+        Bounds::closed(0.0, 0.5).check("rel_std", rel_std)?;
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6b66_6c65_7800_0001);
         let normal = Normal::new(0.0, 1.0).map_err(|_| ModelError::NonFinite {
             name: "rel_std",
@@ -155,13 +133,13 @@ pub struct PlantState {
     /// The command this tick answered.
     pub command: Command,
     /// True bend θ_a, deg.
-    pub theta_deg: f64,
+    pub theta_a_deg: f64,
     /// True translation, mm.
     pub translation_mm: f64,
     /// Bend as the tracker reports it (noisy if noise is on), deg.
-    pub measured_theta_deg: f64,
+    pub theta_a_measured_deg: f64,
     /// Translation as the tracker reports it, mm.
-    pub measured_translation_mm: f64,
+    pub translation_measured_mm: f64,
     /// Motor stroke on tendon `a` (pull-in positive, `−ΔL_a(θ_c)`), mm.
     pub motor_stroke_a_mm: f64,
     /// Motor stroke on tendon `b` (`−ΔL_b(θ_c)`), mm.
@@ -180,6 +158,7 @@ pub struct PlantState {
 
 enum JointSolver {
     Analytic,
+    #[cfg(feature = "multibody")]
     Rapier(Box<RapierJoint>),
 }
 
@@ -204,8 +183,20 @@ impl std::fmt::Debug for Plant {
 
 impl Plant {
     /// A plant at rest, straight, at the shortest translation.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first parameter of `config` out of
+    /// its range; [`ModelError::FeatureDisabled`] for the rapier joint in a
+    /// build without the `multibody` feature.
     pub fn new(config: PlantConfig) -> Result<Self> {
         config.validate()?;
+        #[cfg(not(feature = "multibody"))]
+        if config.joint_model == JointModelKind::Rapier {
+            return Err(ModelError::FeatureDisabled {
+                what: "joint_model = rapier",
+                feature: "multibody",
+            });
+        }
         let sheath = TendonSheath::new(config.sheath, config.sheath_deg)?;
         let noise = match config.noise {
             Some(n) => Some((normal(n.theta_std_deg)?, normal(n.translation_std_mm)?)),
@@ -219,7 +210,7 @@ impl Plant {
             noise,
             state: PlantState::default(),
         };
-        plant.reset();
+        plant.reset()?;
         Ok(plant)
     }
 
@@ -237,32 +228,39 @@ impl Plant {
     pub fn physics_steps(&self) -> u64 {
         match &self.joint {
             JointSolver::Analytic => 0,
+            #[cfg(feature = "multibody")]
             JointSolver::Rapier(j) => j.steps_total(),
         }
     }
 
     /// Back to rest: straight joint, tendons unloaded, noise re-seeded.
-    pub fn reset(&mut self) {
-        self.sheath.reset(0.0);
-        self.joint = match self.config.joint_model {
-            JointModelKind::Analytic => JointSolver::Analytic,
+    ///
+    /// # Errors
+    /// Only if the rapier joint cannot be rebuilt from the configuration,
+    /// which [`Plant::new`] has already checked; the plant is then unchanged.
+    pub fn reset(&mut self) -> Result<()> {
+        let joint = match self.config.joint_model {
+            #[cfg(feature = "multibody")]
             JointModelKind::Rapier => JointSolver::Rapier(Box::new(RapierJoint::new(
                 self.config.geometry,
                 self.config.joint,
                 &self.sheath,
                 RapierSettings::default(),
-            ))),
+            )?)),
+            _ => JointSolver::Analytic,
         };
+        self.sheath.reset(0.0);
+        self.joint = joint;
         self.rng = ChaCha8Rng::seed_from_u64(self.config.seed);
         let t0 = self.config.sheath.pretension_n;
         let translation = self.config.translation.min_mm;
         self.state = PlantState {
             command: Command {
-                theta_deg: 0.0,
+                theta_c_deg: 0.0,
                 translation_mm: translation,
             },
             translation_mm: translation,
-            measured_translation_mm: translation,
+            translation_measured_mm: translation,
             tensions: TendonTensions {
                 a_distal_n: t0,
                 b_distal_n: t0,
@@ -271,6 +269,7 @@ impl Plant {
             },
             ..PlantState::default()
         };
+        Ok(())
     }
 
     /// Changes the sheath configuration (deg) between ticks, as a surgeon reshaping the endoscope.
@@ -281,38 +280,28 @@ impl Plant {
     }
 
     /// Checks a command against the workspace without moving.
+    ///
+    /// # Errors
+    /// [`ModelError::NonFinite`] for a NaN or infinite command,
+    /// [`ModelError::OutOfWorkspace`] past the joint's hard stops or the stage's travel.
     pub fn check_command(&self, command: &Command) -> Result<()> {
-        finite("theta_deg", command.theta_deg)?;
-        finite("translation_mm", command.translation_mm)?;
-        let max = self.config.joint.max_theta_deg;
-        if command.theta_deg.abs() > max {
-            return Err(ModelError::OutOfWorkspace {
-                name: "theta_deg",
-                value: command.theta_deg,
-                min: -max,
-                max,
-            });
-        }
-        let t = &self.config.translation;
-        if command.translation_mm < t.min_mm || command.translation_mm > t.max_mm {
-            return Err(ModelError::OutOfWorkspace {
-                name: "translation_mm",
-                value: command.translation_mm,
-                min: t.min_mm,
-                max: t.max_mm,
-            });
-        }
-        Ok(())
+        check_pose(
+            self.config.joint.max_theta_deg,
+            &self.config.translation,
+            "theta_c_deg",
+            command.theta_c_deg,
+            command.translation_mm,
+        )
     }
 
     /// Advances by `dt_s` under `command`. A bad command or `dt_s ≤ 0` is an
     /// error and leaves the plant exactly as it was.
     pub fn step(&mut self, command: Command, dt_s: f64) -> Result<PlantState> {
-        open_range("dt_s", dt_s, 0.0, 1e3)?;
+        Bounds::open(0.0, 1e3).check("dt_s", dt_s)?;
         self.check_command(&command)?;
         let geometry = self.config.geometry;
-        let theta_c = command.theta_deg.to_radians();
-        let q = geometry.differential_stroke(theta_c);
+        let theta_c = command.theta_c_deg.to_radians();
+        let q = geometry.differential_stroke_mm(theta_c);
         let sheath_before = self.sheath.clone();
         self.sheath.advance(q)?;
         let theta = match &mut self.joint {
@@ -320,8 +309,9 @@ impl Plant {
                 &geometry,
                 &self.config.joint,
                 &self.sheath,
-                self.state.theta_deg.to_radians(),
+                self.state.theta_a_deg.to_radians(),
             ),
+            #[cfg(feature = "multibody")]
             JointSolver::Rapier(j) => match j.settle(&self.sheath) {
                 Ok(t) => t,
                 Err(e) => {
@@ -338,7 +328,8 @@ impl Plant {
         }
         // the joint has answered: the friction state moves to where it settled
         let p = match &self.joint {
-            JointSolver::Analytic => geometry.differential_stroke(theta),
+            JointSolver::Analytic => geometry.differential_stroke_mm(theta),
+            #[cfg(feature = "multibody")]
             JointSolver::Rapier(j) => j.distal_stroke_mm(),
         };
         if let Err(e) = self.sheath.commit(p) {
@@ -346,11 +337,11 @@ impl Plant {
             return Err(e);
         }
         // translation: rate-limited stage
-        let max_move = self.config.translation.max_speed_mm_s * dt_s;
+        let max_move = self.config.translation.max_speed_mm_per_s * dt_s;
         let translation = self.state.translation_mm
             + (command.translation_mm - self.state.translation_mm).clamp(-max_move, max_move);
-        let force = self.sheath.distal_force(p);
-        let theta_deg = theta.to_degrees();
+        let force = self.sheath.distal_force_n(p);
+        let theta_a_deg = theta.to_degrees();
         let (noise_theta, noise_translation) = match &self.noise {
             Some((nt, nd)) => (nt.sample(&mut self.rng), nd.sample(&mut self.rng)),
             None => (0.0, 0.0),
@@ -358,26 +349,26 @@ impl Plant {
         self.state = PlantState {
             time_s: self.state.time_s + dt_s,
             command,
-            theta_deg,
+            theta_a_deg,
             translation_mm: translation,
-            measured_theta_deg: theta_deg + noise_theta,
-            measured_translation_mm: translation + noise_translation,
-            motor_stroke_a_mm: -geometry.delta_l_a(theta_c),
-            motor_stroke_b_mm: -geometry.delta_l_b(theta_c),
-            distal_stroke_a_mm: -geometry.delta_l_a(theta),
-            distal_stroke_b_mm: -geometry.delta_l_b(theta),
+            theta_a_measured_deg: theta_a_deg + noise_theta,
+            translation_measured_mm: translation + noise_translation,
+            motor_stroke_a_mm: -geometry.delta_l_a_mm(theta_c),
+            motor_stroke_b_mm: -geometry.delta_l_b_mm(theta_c),
+            distal_stroke_a_mm: -geometry.delta_l_a_mm(theta),
+            distal_stroke_b_mm: -geometry.delta_l_b_mm(theta),
             differential_force_n: force,
             tensions: self.sheath.tensions(force),
-            friction_state: self.sheath.z(),
+            friction_state: self.sheath.friction_state(),
         };
         Ok(self.state)
     }
 }
 
 fn normal(std: f64) -> Result<Normal<f64>> {
-    Normal::new(0.0, std).map_err(|_| ModelError::InvalidParameter {
+    let std = Bounds::closed_open(0.0, f64::INFINITY).check("noise std", std)?;
+    Normal::new(0.0, std).map_err(|_| ModelError::NonFinite {
         name: "noise std",
         value: std,
-        range: "[0, inf)".into(),
     })
 }

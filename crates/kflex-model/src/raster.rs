@@ -7,172 +7,16 @@
 //! centre lies inside or on their edges. No GPU, no allocation per frame once
 //! the [`Rasterizer`]'s buffers have grown.
 
-use crate::camera::Camera;
+use crate::camera::{Camera, Intrinsics};
 use crate::error::{ModelError, Result};
 use crate::instrument::InstrumentShape;
+use crate::mask::Mask;
 use nalgebra::{Point3, Vector3};
 
 /// Sides of the prism that stands for each cylinder.
-pub const CYLINDER_SIDES: usize = 16;
+const CYLINDER_SIDES: usize = 16;
 /// Near clipping distance, mm: geometry closer to the camera is not drawn.
-pub const Z_NEAR: f64 = 0.5;
-
-/// A binary image: one byte per pixel, 0 or 1, row-major.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Mask {
-    width: u32,
-    height: u32,
-    data: Vec<u8>,
-}
-
-impl Mask {
-    /// An empty mask. Zero width or height is an error.
-    pub fn new(width: u32, height: u32) -> Result<Self> {
-        crate::error::image_size(width, height)?;
-        Ok(Self {
-            width,
-            height,
-            data: vec![0; width as usize * height as usize],
-        })
-    }
-
-    /// A mask over `data` (row-major, non-zero = set); its length must be `width × height`.
-    pub fn from_raw(width: u32, height: u32, data: Vec<u8>) -> Result<Self> {
-        crate::error::image_size(width, height)?;
-        let expected = width as usize * height as usize;
-        if data.len() != expected {
-            return Err(ModelError::ImageSize {
-                what: "mask buffer",
-                width,
-                height,
-                expected,
-                got: data.len(),
-            });
-        }
-        Ok(Self {
-            width,
-            height,
-            data: data.into_iter().map(|v| u8::from(v != 0)).collect(),
-        })
-    }
-
-    /// Width, px.
-    pub fn width(&self) -> u32 {
-        self.width
-    }
-
-    /// Height, px.
-    pub fn height(&self) -> u32 {
-        self.height
-    }
-
-    /// Pixels, row-major, 0 or 1.
-    pub fn data(&self) -> &[u8] {
-        &self.data
-    }
-
-    /// Whether pixel `(x, y)` is set (false outside the image).
-    pub fn get(&self, x: u32, y: u32) -> bool {
-        x < self.width && y < self.height && self.data[(y * self.width + x) as usize] != 0
-    }
-
-    /// Number of set pixels.
-    pub fn count(&self) -> usize {
-        self.data.iter().filter(|&&v| v != 0).count()
-    }
-
-    /// The `width × height` window whose top-left pixel is `(x0, y0)`; it must lie inside.
-    pub fn crop(&self, x0: u32, y0: u32, width: u32, height: u32) -> Result<Mask> {
-        crate::error::image_size(width, height)?;
-        if u64::from(x0) + u64::from(width) > u64::from(self.width)
-            || u64::from(y0) + u64::from(height) > u64::from(self.height)
-        {
-            return Err(ModelError::InvalidParameter {
-                name: "crop window end",
-                value: f64::from(x0.saturating_add(width).max(y0.saturating_add(height))),
-                range: format!("a window inside {}×{}", self.width, self.height),
-            });
-        }
-        let mut data = Vec::with_capacity(width as usize * height as usize);
-        for y in y0..y0 + height {
-            let row = (y * self.width + x0) as usize;
-            data.extend_from_slice(&self.data[row..row + width as usize]);
-        }
-        Ok(Mask {
-            width,
-            height,
-            data,
-        })
-    }
-
-    /// Clears every pixel.
-    pub fn clear(&mut self) {
-        self.data.fill(0);
-    }
-
-    /// Intersection over union with `other` (1 when both are empty). Sizes must match.
-    pub fn iou(&self, other: &Mask) -> Result<f64> {
-        if (self.width, self.height) != (other.width, other.height) {
-            return Err(ModelError::ImageSize {
-                what: "masks compared",
-                width: self.width,
-                height: self.height,
-                expected: self.data.len(),
-                got: other.data.len(),
-            });
-        }
-        let (mut inter, mut union) = (0usize, 0usize);
-        for (a, b) in self.data.iter().zip(&other.data) {
-            inter += usize::from(*a != 0 && *b != 0);
-            union += usize::from(*a != 0 || *b != 0);
-        }
-        Ok(if union == 0 {
-            1.0
-        } else {
-            inter as f64 / union as f64
-        })
-    }
-
-    /// Makes this a clear `width × height` mask, keeping the allocation where it
-    /// is large enough (for loops that refill one mask frame after frame).
-    pub fn reshape(&mut self, width: u32, height: u32) -> Result<()> {
-        crate::error::image_size(width, height)?;
-        self.width = width;
-        self.height = height;
-        self.data.clear();
-        self.data.resize(width as usize * height as usize, 0);
-        Ok(())
-    }
-
-    /// Writes row `y` from `row` (non-zero = set); `row` must be one row long.
-    pub fn set_row(&mut self, y: u32, row: &[u8]) -> Result<()> {
-        if y >= self.height {
-            return Err(ModelError::InvalidParameter {
-                name: "mask row",
-                value: f64::from(y),
-                range: format!("[0, {})", self.height),
-            });
-        }
-        if row.len() != self.width as usize {
-            return Err(ModelError::ImageSize {
-                what: "mask row",
-                width: self.width,
-                height: self.height,
-                expected: self.width as usize,
-                got: row.len(),
-            });
-        }
-        let start = y as usize * self.width as usize;
-        for (d, &v) in self.data[start..start + row.len()].iter_mut().zip(row) {
-            *d = u8::from(v != 0);
-        }
-        Ok(())
-    }
-
-    fn set(&mut self, x: usize, y: usize) {
-        self.data[y * self.width as usize + x] = 1;
-    }
-}
+const Z_NEAR: f64 = 0.5;
 
 /// Reusable rasterizer state.
 #[derive(Debug, Default, Clone)]
@@ -195,30 +39,30 @@ impl Rasterizer {
         mask: &mut Mask,
     ) -> Result<()> {
         let k = &camera.intrinsics;
-        if (mask.width, mask.height) != (k.width, k.height) {
+        if (mask.width(), mask.height()) != (k.width, k.height) {
             return Err(ModelError::ImageSize {
                 what: "mask for this camera",
                 width: k.width,
                 height: k.height,
                 expected: k.width as usize * k.height as usize,
-                got: mask.data.len(),
+                got: mask.data().len(),
             });
         }
         let area_radius = ((std::f64::consts::TAU / CYLINDER_SIDES as f64)
             / (std::f64::consts::TAU / CYLINDER_SIDES as f64).sin())
         .sqrt();
         for c in &shape.capsules {
-            let a = (camera.camera_from_overtube * Point3::from(c.a)).coords;
-            let b = (camera.camera_from_overtube * Point3::from(c.b)).coords;
+            let a = (camera.camera_from_overtube * Point3::from(c.a_mm)).coords;
+            let b = (camera.camera_from_overtube * Point3::from(c.b_mm)).coords;
             self.triangles.clear();
-            prism(a, b, c.radius * area_radius, &mut self.triangles);
+            prism(a, b, c.radius_mm * area_radius, &mut self.triangles);
             for tri in &self.triangles {
                 fill_clipped(camera, tri, mask);
             }
             if c.cap_a {
-                fill_sphere(camera, a, c.radius, mask);
+                fill_sphere(camera, a, c.radius_mm, mask);
             }
-            fill_sphere(camera, b, c.radius, mask);
+            fill_sphere(camera, b, c.radius_mm, mask);
         }
         Ok(())
     }
@@ -332,37 +176,51 @@ fn fill_triangle(camera: &Camera, tri: &[Vector3<f64>; 3], mask: &mut Mask) {
         let last = (x_max - 0.5).floor().min(w - 1.0);
         if first <= last {
             let row = y * k.width as usize;
-            mask.data[row + first as usize..=row + last as usize].fill(1);
+            mask.fill_span(row + first as usize, row + last as usize);
         }
     }
 }
 
 /// Fills the pixels whose centre ray meets the sphere (camera frame, mm).
+/// Pixel box `[u_min, v_min, u_max, v_max]` of a sphere (centre `c` in the
+/// camera frame, radius `r`, mm) under intrinsics `k`: along each image axis,
+/// where the planes through the centre of projection touch the sphere (the
+/// tangent lines of its disc in the (axis, z) plane). `None` where the
+/// sphere reaches the camera's plane, so that no finite box holds it.
+pub(crate) fn sphere_extent(k: &Intrinsics, c: Vector3<f64>, r: f64) -> Option<[f64; 4]> {
+    let along = |x: f64, f: f64, centre: f64| -> Option<(f64, f64)> {
+        let rho = x.hypot(c.z);
+        if rho <= r {
+            return None;
+        }
+        let (alpha, delta) = (x.atan2(c.z), (r / rho).asin());
+        let (lo, hi) = (alpha - delta, alpha + delta);
+        let limit = std::f64::consts::FRAC_PI_2 - 1e-9;
+        if lo <= -limit || hi >= limit {
+            return None;
+        }
+        Some((centre + f * lo.tan(), centre + f * hi.tan()))
+    };
+    let (u0, u1) = along(c.x, k.fx, k.cx)?;
+    let (v0, v1) = along(c.y, k.fy, k.cy)?;
+    Some([u0, v0, u1, v1])
+}
+
 fn fill_sphere(camera: &Camera, c: Vector3<f64>, r: f64, mask: &mut Mask) {
     if c.z + r < Z_NEAR {
         return;
     }
     let k = &camera.intrinsics;
     let (w, h) = (f64::from(k.width), f64::from(k.height));
-    // extent along one image axis from the tangent lines in the (axis, z) plane
-    let extent = |x: f64, f: f64, centre: f64, size: f64| -> (f64, f64) {
-        let rho = x.hypot(c.z);
-        if rho <= r {
-            return (0.0, size);
-        }
-        let (alpha, delta) = (x.atan2(c.z), (r / rho).asin());
-        let (lo, hi) = (alpha - delta, alpha + delta);
-        let limit = std::f64::consts::FRAC_PI_2 - 1e-9;
-        if lo <= -limit || hi >= limit {
-            return (0.0, size);
-        }
-        (
-            (centre + f * lo.tan()).floor().max(0.0),
-            (centre + f * hi.tan()).ceil().min(size),
-        )
+    let [x_lo, y_lo, x_hi, y_hi] = match sphere_extent(k, c, r) {
+        Some([u0, v0, u1, v1]) => [
+            u0.floor().max(0.0),
+            v0.floor().max(0.0),
+            u1.ceil().min(w),
+            v1.ceil().min(h),
+        ],
+        None => [0.0, 0.0, w, h],
     };
-    let (x_lo, x_hi) = extent(c.x, k.fx, k.cx, w);
-    let (y_lo, y_hi) = extent(c.y, k.fy, k.cy, h);
     let (cc, rr) = (c.norm_squared(), r * r);
     for y in y_lo as usize..y_hi.max(y_lo) as usize {
         let dy = (y as f64 + 0.5 - k.cy) / k.fy;

@@ -15,9 +15,11 @@ use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
 use crate::camera::Camera;
-use crate::error::{ModelError, Result, closed_range};
+use crate::error::{ModelError, Result};
 use crate::instrument::{InstrumentShape, Part};
-use crate::raster::{Mask, Rasterizer};
+use crate::mask::Mask;
+use crate::range::Bounds;
+use crate::raster::Rasterizer;
 
 /// Procedural clinical background, after the paper's printed colon, stomach and larynx images.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -99,12 +101,12 @@ impl Default for FrameParams {
 impl FrameParams {
     /// Checks the parameters.
     pub fn validate(&self) -> Result<()> {
-        closed_range("illumination_gain", self.illumination_gain, 0.05, 5.0)?;
-        closed_range("noise_std", self.noise_std, 0.0, 1.0)?;
-        closed_range("blur_px", self.blur_px, 0.0, 20.0)?;
+        Bounds::closed(0.05, 5.0).check("illumination_gain", self.illumination_gain)?;
+        Bounds::closed(0.0, 1.0).check("noise_std", self.noise_std)?;
+        Bounds::closed(0.0, 20.0).check("blur_px", self.blur_px)?;
         if let Some(o) = self.occlusion {
-            closed_range("occlusion.fraction", o.fraction, 0.0, 1.0)?;
-            closed_range("occlusion.position", o.position, 0.0, 1.0)?;
+            Bounds::closed(0.0, 1.0).check("occlusion.fraction", o.fraction)?;
+            Bounds::closed(0.0, 1.0).check("occlusion.position", o.position)?;
         }
         Ok(())
     }
@@ -251,9 +253,9 @@ impl SceneRenderer {
             .capsules
             .iter()
             .map(|c| {
-                let a = (camera.camera_from_overtube * nalgebra::Point3::from(c.a)).coords;
-                let b = (camera.camera_from_overtube * nalgebra::Point3::from(c.b)).coords;
-                CameraCapsule::new(a, b, c.radius, screen_box(camera, a, b, c.radius))
+                let a = (camera.camera_from_overtube * nalgebra::Point3::from(c.a_mm)).coords;
+                let b = (camera.camera_from_overtube * nalgebra::Point3::from(c.b_mm)).coords;
+                CameraCapsule::new(a, b, c.radius_mm, screen_box(camera, a, b, c.radius_mm))
             })
             .collect();
         let mut row_caps: Vec<(usize, &CameraCapsule)> = Vec::with_capacity(caps.len());
@@ -390,7 +392,11 @@ fn screen_box(camera: &Camera, a: Vector3<f64>, b: Vector3<f64>, r: f64) -> [f64
 }
 
 fn capsule_length(c: &crate::instrument::Capsule) -> f64 {
-    let d = [c.b[0] - c.a[0], c.b[1] - c.a[1], c.b[2] - c.a[2]];
+    let d = [
+        c.b_mm[0] - c.a_mm[0],
+        c.b_mm[1] - c.a_mm[1],
+        c.b_mm[2] - c.a_mm[2],
+    ];
     (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
 }
 

@@ -7,15 +7,16 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::error::{ModelError, Result, closed_range, open_range};
+use crate::error::Result;
+use crate::range::Bounds;
 
 /// A commanded bending angle and its rate.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Sample {
     /// θ_d, deg.
-    pub theta_deg: f64,
+    pub theta_d_deg: f64,
     /// dθ_d/dt, deg/s.
-    pub rate_deg_s: f64,
+    pub theta_d_rate_deg_per_s: f64,
 }
 
 /// One sinusoid `offset + amplitude · sin(2π f t + phase)`.
@@ -49,8 +50,8 @@ impl Sine {
         let w = std::f64::consts::TAU * self.frequency_hz;
         let (s, c) = (w * t + self.phase_rad).sin_cos();
         Sample {
-            theta_deg: self.offset_deg + self.amplitude_deg * s,
-            rate_deg_s: self.amplitude_deg * w * c,
+            theta_d_deg: self.offset_deg + self.amplitude_deg * s,
+            theta_d_rate_deg_per_s: self.amplitude_deg * w * c,
         }
     }
 }
@@ -137,9 +138,9 @@ impl Trajectory {
     pub fn sampler(&self) -> Result<TrajectorySampler> {
         let kind = match self {
             Trajectory::Sine(s) => {
-                closed_range("amplitude_deg", s.amplitude_deg, 0.0, 360.0)?;
-                closed_range("offset_deg", s.offset_deg, -360.0, 360.0)?;
-                open_range("frequency_hz", s.frequency_hz, 0.0, 1e3)?;
+                Bounds::closed(0.0, 360.0).check("amplitude_deg", s.amplitude_deg)?;
+                Bounds::closed(-360.0, 360.0).check("offset_deg", s.offset_deg)?;
+                Bounds::open(0.0, 1e3).check("frequency_hz", s.frequency_hz)?;
                 crate::error::finite("phase_rad", s.phase_rad)?;
                 SamplerKind::Sine(*s)
             }
@@ -147,19 +148,13 @@ impl Trajectory {
                 legs,
                 cycles_per_leg,
             } => {
-                if legs.is_empty() {
-                    return Err(ModelError::InvalidParameter {
-                        name: "legs.len()",
-                        value: 0.0,
-                        range: "[1, inf)".into(),
-                    });
-                }
-                closed_range("cycles_per_leg", f64::from(*cycles_per_leg), 1.0, 1e6)?;
+                Bounds::closed_open(1.0, f64::INFINITY).check("legs.len()", legs.len() as f64)?;
+                Bounds::closed(1.0, 1e6).check("cycles_per_leg", f64::from(*cycles_per_leg))?;
                 let mut t0 = 0.0;
                 let mut out = Vec::with_capacity(legs.len());
                 for &(amp, f) in legs {
-                    closed_range("leg amplitude_deg", amp, 0.0, 360.0)?;
-                    open_range("leg frequency_hz", f, 0.0, 1e3)?;
+                    Bounds::closed(0.0, 360.0).check("leg amplitude_deg", amp)?;
+                    Bounds::open(0.0, 1e3).check("leg frequency_hz", f)?;
                     out.push((amp, f, t0));
                     t0 += f64::from(*cycles_per_leg) / f;
                 }
@@ -176,8 +171,8 @@ impl Trajectory {
                 seed,
             } => {
                 let (lo, hi) = range(*min_deg, *max_deg)?;
-                open_range("cutoff_hz", *cutoff_hz, 0.0, 1e3)?;
-                closed_range("components", f64::from(*components), 1.0, 1024.0)?;
+                Bounds::open(0.0, 1e3).check("cutoff_hz", *cutoff_hz)?;
+                Bounds::closed(1.0, 1024.0).check("components", f64::from(*components))?;
                 let mut rng = ChaCha8Rng::seed_from_u64(*seed);
                 let mut parts: Vec<Sine> = (0..*components)
                     .map(|_| {
@@ -208,8 +203,8 @@ impl Trajectory {
                 seed,
             } => {
                 let (lo, hi) = range(*min_deg, *max_deg)?;
-                open_range("hold_s", *hold_s, 0.0, 1e6)?;
-                closed_range("ramp_s", *ramp_s, 0.0, *hold_s)?;
+                Bounds::open(0.0, 1e6).check("hold_s", *hold_s)?;
+                Bounds::closed(0.0, *hold_s).check("ramp_s", *ramp_s)?;
                 let mut rng = ChaCha8Rng::seed_from_u64(*seed);
                 let levels = (0..STEP_LEVELS)
                     .map(|_| rng.random_range(lo..=hi))
@@ -226,8 +221,8 @@ impl Trajectory {
 }
 
 fn range(lo: f64, hi: f64) -> Result<(f64, f64)> {
-    closed_range("min_deg", lo, -360.0, 360.0)?;
-    closed_range("max_deg", hi, lo, 360.0)?;
+    Bounds::closed(-360.0, 360.0).check("min_deg", lo)?;
+    Bounds::closed(lo, 360.0).check("max_deg", hi)?;
     Ok((lo, hi))
 }
 
@@ -246,20 +241,21 @@ impl TrajectorySampler {
                 }
                 let w = std::f64::consts::TAU * f;
                 Sample {
-                    theta_deg: 0.5 * amp * (1.0 - (w * local).cos()),
-                    rate_deg_s: 0.5 * amp * w * (w * local).sin(),
+                    theta_d_deg: 0.5 * amp * (1.0 - (w * local).cos()),
+                    theta_d_rate_deg_per_s: 0.5 * amp * w * (w * local).sin(),
                 }
             }
             SamplerKind::Sum { offset, parts } => parts.iter().fold(
                 Sample {
-                    theta_deg: *offset,
-                    rate_deg_s: 0.0,
+                    theta_d_deg: *offset,
+                    theta_d_rate_deg_per_s: 0.0,
                 },
                 |acc, p| {
                     let s = p.sample(t);
                     Sample {
-                        theta_deg: acc.theta_deg + s.theta_deg,
-                        rate_deg_s: acc.rate_deg_s + s.rate_deg_s,
+                        theta_d_deg: acc.theta_d_deg + s.theta_d_deg,
+                        theta_d_rate_deg_per_s: acc.theta_d_rate_deg_per_s
+                            + s.theta_d_rate_deg_per_s,
                     }
                 },
             ),
@@ -273,13 +269,13 @@ impl TrajectorySampler {
                     let w = 0.5 * (1.0 - (std::f64::consts::PI * u).cos());
                     let dw = 0.5 * std::f64::consts::PI * (std::f64::consts::PI * u).sin() / ramp;
                     Sample {
-                        theta_deg: from + (to - from) * w,
-                        rate_deg_s: (to - from) * dw,
+                        theta_d_deg: from + (to - from) * w,
+                        theta_d_rate_deg_per_s: (to - from) * dw,
                     }
                 } else {
                     Sample {
-                        theta_deg: to,
-                        rate_deg_s: 0.0,
+                        theta_d_deg: to,
+                        theta_d_rate_deg_per_s: 0.0,
                     }
                 }
             }
@@ -301,11 +297,12 @@ impl TrajectorySampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::expect_range;
 
     fn check_rate(s: &TrajectorySampler, t: f64) {
         let h = 1e-6;
-        let num = (s.sample(t + h).theta_deg - s.sample(t - h).theta_deg) / (2.0 * h);
-        let ana = s.sample(t).rate_deg_s;
+        let num = (s.sample(t + h).theta_d_deg - s.sample(t - h).theta_d_deg) / (2.0 * h);
+        let ana = s.sample(t).theta_d_rate_deg_per_s;
         assert!(
             (num - ana).abs() < 1e-3 * (1.0 + ana.abs()),
             "t={t}: {num} vs {ana}"
@@ -317,9 +314,9 @@ mod tests {
         let s = Trajectory::paper().sampler().unwrap();
         for t in [0.0, 0.5, 1.7, 10.0] {
             let expected = 25.0 * (std::f64::consts::TAU * 0.159 * t).sin() + 25.0;
-            assert!((s.sample(t).theta_deg - expected).abs() < 1e-12);
+            assert!((s.sample(t).theta_d_deg - expected).abs() < 1e-12);
             // 0.159 Hz is 1 rad/s to within 0.1%
-            assert!((s.sample(t).theta_deg - (25.0 * t.sin() + 25.0)).abs() < 0.1 * (1.0 + t));
+            assert!((s.sample(t).theta_d_deg - (25.0 * t.sin() + 25.0)).abs() < 0.1 * (1.0 + t));
             check_rate(&s, t + 0.1);
         }
     }
@@ -349,9 +346,9 @@ mod tests {
         let mut differs = false;
         for k in 0..20000 {
             let t = k as f64 * 0.01;
-            let v = s.sample(t).theta_deg;
-            assert_eq!(v, again.sample(t).theta_deg);
-            differs |= (v - other.sample(t).theta_deg).abs() > 1.0;
+            let v = s.sample(t).theta_d_deg;
+            assert_eq!(v, again.sample(t).theta_d_deg);
+            differs |= (v - other.sample(t).theta_d_deg).abs() > 1.0;
             lo = lo.min(v);
             hi = hi.max(v);
         }
@@ -369,9 +366,9 @@ mod tests {
         };
         let s = traj.sampler().unwrap();
         assert_eq!(s.natural_duration_s(), Some(2.0 / 0.2 + 2.0 / 0.1));
-        assert!((s.sample(2.5).theta_deg - 35.0).abs() < 1e-9); // first peak of leg 1
-        assert!((s.sample(10.0 + 5.0).theta_deg - 45.0).abs() < 1e-9); // first peak of leg 2
-        assert!(s.sample(10.0).theta_deg.abs() < 1e-9);
+        assert!((s.sample(2.5).theta_d_deg - 35.0).abs() < 1e-9); // first peak of leg 1
+        assert!((s.sample(10.0 + 5.0).theta_d_deg - 45.0).abs() < 1e-9); // first peak of leg 2
+        assert!(s.sample(10.0).theta_d_deg.abs() < 1e-9);
         check_rate(&s, 1.3);
     }
 
@@ -385,33 +382,38 @@ mod tests {
             seed: 1,
         };
         let s = traj.sampler().unwrap();
-        let a = s.sample(1.0).theta_deg;
-        let b = s.sample(3.9).theta_deg;
-        assert_eq!(s.sample(1.9).theta_deg, a);
+        let a = s.sample(1.0).theta_d_deg;
+        let b = s.sample(3.9).theta_d_deg;
+        assert_eq!(s.sample(1.9).theta_d_deg, a);
         assert!((0.0..=50.0).contains(&a) && (0.0..=50.0).contains(&b));
-        let mid = s.sample(2.25).theta_deg;
+        let mid = s.sample(2.25).theta_d_deg;
         assert!((mid - 0.5 * (a + b)).abs() < 1e-9);
         check_rate(&s, 2.2);
     }
 
     #[test]
     fn rejects_bad_specs() {
-        assert!(
+        let e = expect_range(
             Trajectory::Sine(Sine {
                 frequency_hz: 0.0,
                 ..Sine::PAPER
             })
-            .sampler()
-            .is_err()
+            .sampler(),
+            "frequency_hz",
         );
-        assert!(
+        assert_eq!(
+            (e.value, e.bounds.min, e.bounds.min_inclusive),
+            (0.0, 0.0, false)
+        );
+        let e = expect_range(
             Trajectory::PeriodicSet {
                 legs: vec![],
-                cycles_per_leg: 1
+                cycles_per_leg: 1,
             }
-            .sampler()
-            .is_err()
+            .sampler(),
+            "legs.len()",
         );
+        assert_eq!(e.value, 0.0);
         let bad = Trajectory::BandLimited {
             min_deg: 10.0,
             max_deg: 0.0,
@@ -419,7 +421,8 @@ mod tests {
             components: 3,
             seed: 0,
         };
-        assert!(bad.sampler().is_err());
+        let e = expect_range(bad.sampler(), "max_deg");
+        assert_eq!((e.value, e.bounds.min), (0.0, 10.0));
         let bad = Trajectory::Steps {
             min_deg: 0.0,
             max_deg: 1.0,
@@ -427,6 +430,7 @@ mod tests {
             ramp_s: 2.0,
             seed: 0,
         };
-        assert!(bad.sampler().is_err());
+        let e = expect_range(bad.sampler(), "ramp_s");
+        assert_eq!((e.value, e.bounds.max), (2.0, 1.0));
     }
 }

@@ -51,8 +51,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Result, closed_range, finite, open_range};
+use crate::error::{Result, finite};
 use crate::hysteresis::Play;
+use crate::range::Bounds;
 
 /// Parameters of the tendon-sheath transmission. Forces in N, lengths in mm, angles in degrees.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -76,39 +77,22 @@ pub struct SheathParams {
     pub distal_stiffness_n_per_mm: f64,
 }
 
-impl Default for SheathParams {
-    /// Defaults fitted to Table IX's uncompensated row (see the crate docs for the fit).
-    fn default() -> Self {
-        crate::calibration::FITTED_SHEATH
-    }
-}
-
 impl SheathParams {
     /// Checks every parameter against its physical range.
     pub fn validate(&self) -> Result<()> {
-        closed_range("friction_coefficient", self.friction_coefficient, 0.0, 2.0)?;
-        closed_range("route_wrap_deg", self.route_wrap_deg, 0.0, 3600.0)?;
-        open_range("pretension_n", self.pretension_n, 0.0, 1e4)?;
-        open_range(
-            "tendon_stiffness_n_per_mm",
-            self.tendon_stiffness_n_per_mm,
-            0.0,
-            1e6,
-        )?;
-        closed_range("coulomb_friction_n", self.coulomb_friction_n, 0.0, 1e4)?;
-        closed_range("drive_backlash_mm", self.drive_backlash_mm, 0.0, 100.0)?;
-        closed_range(
+        Bounds::closed(0.0, 2.0).check("friction_coefficient", self.friction_coefficient)?;
+        Bounds::closed(0.0, 3600.0).check("route_wrap_deg", self.route_wrap_deg)?;
+        Bounds::open(0.0, 1e4).check("pretension_n", self.pretension_n)?;
+        Bounds::open(0.0, 1e6)
+            .check("tendon_stiffness_n_per_mm", self.tendon_stiffness_n_per_mm)?;
+        Bounds::closed(0.0, 1e4).check("coulomb_friction_n", self.coulomb_friction_n)?;
+        Bounds::closed(0.0, 100.0).check("drive_backlash_mm", self.drive_backlash_mm)?;
+        Bounds::closed(-10.0, 10.0).check(
             "sheath_coupling_mm_per_rad",
             self.sheath_coupling_mm_per_rad,
-            -10.0,
-            10.0,
         )?;
-        open_range(
-            "distal_stiffness_n_per_mm",
-            self.distal_stiffness_n_per_mm,
-            0.0,
-            1e7,
-        )?;
+        Bounds::open(0.0, 1e7)
+            .check("distal_stiffness_n_per_mm", self.distal_stiffness_n_per_mm)?;
         Ok(())
     }
 }
@@ -182,7 +166,7 @@ impl TendonSheath {
     /// they are in the sheath (the node holds), so the distal force does not jump;
     /// the next tick slides them onto the new friction band if they lie outside it.
     pub fn set_sheath_deg(&mut self, sheath_deg: f64) -> Result<()> {
-        closed_range("sheath_deg", sheath_deg, 0.0, 3600.0)?;
+        Bounds::closed(0.0, 3600.0).check("sheath_deg", sheath_deg)?;
         let p = &self.params;
         let mu_phi = p.friction_coefficient * (sheath_deg + p.route_wrap_deg).to_radians();
         self.sheath_deg = sheath_deg;
@@ -209,27 +193,27 @@ impl TendonSheath {
     }
 
     /// Resets: motors at stroke `q`, joint straight, no friction mobilised.
-    pub fn reset(&mut self, q: f64) {
-        self.play.reset(q);
+    pub fn reset(&mut self, q_mm: f64) {
+        self.play.reset(q_mm);
         self.p_committed = 0.0;
         self.node_mm = self.branch_node(0.0, 0.0);
     }
 
     /// Moves the motors' differential stroke to `q` (mm). The tendons in the
     /// sheath move when the joint's answer is known: [`TendonSheath::commit`].
-    pub fn advance(&mut self, q: f64) -> Result<()> {
-        self.play.advance(q)?;
+    pub fn advance(&mut self, q_mm: f64) -> Result<()> {
+        self.play.advance(q_mm)?;
         Ok(())
     }
 
     /// Mobilised friction as a fraction of `H` at the committed state, in `[−1, 1]`
     /// (+1: sliding as when tendon `a` is pulled in; 0 with no friction).
-    pub fn z(&self) -> f64 {
+    pub fn friction_state(&self) -> f64 {
         self.mobilised(self.node_mm, self.p_committed)
     }
 
     /// Stroke after the drive's backlash, mm.
-    pub fn stroke_after_backlash(&self) -> f64 {
+    pub fn stroke_after_backlash_mm(&self) -> f64 {
         self.play.output()
     }
 
@@ -273,12 +257,12 @@ impl TendonSheath {
     }
 
     /// The tendons at the joint if its distal stroke were `p` (mm), without committing it.
-    pub fn distal(&self, p: f64) -> Distal {
+    pub fn distal(&self, p_mm: f64) -> Distal {
         let kd = self.params.distal_stiffness_n_per_mm;
         let h = self.friction_n;
         // branch positions: friction fully mobilised one way (+H: tendons pulled in) or the other
-        let s_pull = self.branch_node(h, p);
-        let s_release = self.branch_node(-h, p);
+        let s_pull = self.branch_node(h, p_mm);
+        let s_release = self.branch_node(-h, p_mm);
         let (node, sliding) = if self.node_mm < s_pull {
             (s_pull, true)
         } else if self.node_mm > s_release {
@@ -286,7 +270,7 @@ impl TendonSheath {
         } else {
             (self.node_mm, false)
         };
-        let force = kd * (node - p);
+        let force = kd * (node - p_mm);
         let slope = if sliding {
             // series of the distal run and the sheath run (seen through cosh μΦ)
             let q = self.play.output() - self.coupling_mm - node;
@@ -304,20 +288,20 @@ impl TendonSheath {
     }
 
     /// Differential distal force `F = T_a − T_b` (N) if the joint's distal stroke were `p` (mm).
-    pub fn distal_force(&self, p: f64) -> f64 {
-        self.distal(p).force_n
+    pub fn distal_force_n(&self, p_mm: f64) -> f64 {
+        self.distal(p_mm).force_n
     }
 
     /// Records that the joint settled at distal stroke `p` (mm): the tendons move there.
-    pub fn commit(&mut self, p: f64) -> Result<()> {
-        finite("distal stroke", p)?;
-        self.node_mm = self.distal(p).node_mm;
-        self.p_committed = p;
+    pub fn commit(&mut self, p_mm: f64) -> Result<()> {
+        finite("distal stroke", p_mm)?;
+        self.node_mm = self.distal(p_mm).node_mm;
+        self.p_committed = p_mm;
         Ok(())
     }
 
     /// Stiffness of the taut pair, N/mm: an upper bound of `−dF/dp`.
-    pub fn taut_stiffness(&self) -> f64 {
+    pub fn taut_stiffness_n_per_mm(&self) -> f64 {
         self.params
             .distal_stiffness_n_per_mm
             .max(self.params.tendon_stiffness_n_per_mm)
@@ -332,7 +316,7 @@ impl TendonSheath {
         let t0 = self.params.pretension_n;
         let a = (t0 + 0.5 * force_n).max(force_n).max(0.0);
         let b = a - force_n;
-        let z = self.z();
+        let z = self.friction_state();
         TendonTensions {
             a_distal_n: a,
             b_distal_n: b,
@@ -345,6 +329,7 @@ impl TendonSheath {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::{ModelError, expect_range};
 
     /// Moderate, explicit parameters: these tests are about the mechanism, not the calibration.
     fn params() -> SheathParams {
@@ -450,14 +435,14 @@ mod tests {
             t.advance(q * f64::from(step) / 100.0).unwrap();
             t.commit(0.0).unwrap();
         }
-        let f = t.distal_force(0.0);
+        let f = t.distal_force_n(0.0);
         assert!(f.abs() < 2.0 * p.pretension_n, "taut for this check: {f}");
         let expected = (q - h / k) / (x.cosh() / k + 1.0 / kd);
         assert!((f - expected).abs() < 1e-9, "{f} vs {expected}");
         assert!(
-            (t.z() - 1.0).abs() < 1e-9,
+            (t.friction_state() - 1.0).abs() < 1e-9,
             "friction fully mobilised: {}",
-            t.z()
+            t.friction_state()
         );
     }
 
@@ -487,13 +472,16 @@ mod tests {
             t.advance(0.05 * f64::from(k)).unwrap();
             t.commit(0.0).unwrap(); // joint held: the friction develops fully
         }
-        assert!(t.z() > 0.999, "{}", t.z());
+        assert!(t.friction_state() > 0.999, "{}", t.friction_state());
         let tt = t.tensions(2.0);
         assert!(tt.b_distal_n > 0.0, "both taut at this force");
         let capstan = (p.friction_coefficient * (180.0 + p.route_wrap_deg).to_radians()).exp();
         // fully developed friction (z → 1) gives the capstan ratio e^{μΦ}
         let x = capstan.ln();
-        assert!((tt.a_proximal_n / tt.a_distal_n - (x.cosh() + t.z() * x.sinh())).abs() < 1e-12);
+        assert!(
+            (tt.a_proximal_n / tt.a_distal_n - (x.cosh() + t.friction_state() * x.sinh())).abs()
+                < 1e-12
+        );
         assert!((tt.a_proximal_n / tt.a_distal_n - capstan).abs() < 1e-2 * capstan);
     }
 
@@ -505,10 +493,10 @@ mod tests {
         };
         let mut t = TendonSheath::new(p, 90.0).unwrap();
         t.advance(3.0).unwrap();
-        let mut last = t.distal_force(-2.0);
+        let mut last = t.distal_force_n(-2.0);
         let step = 1e-3;
         for k in 1..7000 {
-            let f = t.distal_force(-2.0 + step * f64::from(k));
+            let f = t.distal_force_n(-2.0 + step * f64::from(k));
             assert!(f <= last + 1e-12, "F must not increase with p");
             // no jump: at most the stiffest slope (the distal run, when stuck) times the step
             assert!(
@@ -517,7 +505,7 @@ mod tests {
             );
             last = f;
         }
-        let f = t.distal_force(0.0);
+        let f = t.distal_force_n(0.0);
         assert!(f > 2.0 * p.pretension_n, "should be past slack: {f}");
         let tt = t.tensions(f);
         assert_eq!(tt.b_distal_n, 0.0);
@@ -555,12 +543,12 @@ mod tests {
             t.advance(0.01 * f64::from(k)).unwrap();
             t.commit(0.0).unwrap();
         }
-        let before = t.distal_force(0.0);
+        let before = t.distal_force_n(0.0);
         t.set_sheath_deg(270.0).unwrap();
         assert!(
-            (t.distal_force(0.0) - before).abs() < 1e-9,
+            (t.distal_force_n(0.0) - before).abs() < 1e-9,
             "{before} -> {}",
-            t.distal_force(0.0)
+            t.distal_force_n(0.0)
         );
         // and turning the friction on from none starts from the current elastic force
         let none = SheathParams {
@@ -571,7 +559,7 @@ mod tests {
         let mut t = TendonSheath::new(none, 0.0).unwrap();
         t.advance(0.5).unwrap();
         t.commit(0.0).unwrap();
-        let free = t.distal_force(0.0);
+        let free = t.distal_force_n(0.0);
         let mut with = TendonSheath::new(
             SheathParams {
                 friction_coefficient: 0.0,
@@ -582,7 +570,7 @@ mod tests {
         .unwrap();
         with.advance(0.5).unwrap();
         with.commit(0.0).unwrap();
-        assert!(with.distal_force(0.0) <= free + 1e-12);
+        assert!(with.distal_force_n(0.0) <= free + 1e-12);
     }
 
     #[test]
@@ -592,9 +580,9 @@ mod tests {
         let mut t = TendonSheath::new(p, 180.0).unwrap();
         t.advance(0.05).unwrap();
         t.commit(0.0).unwrap();
-        let z = t.z();
+        let z = t.friction_state();
         assert!(z > 0.05 && z < 0.95, "partly developed friction: {z}");
-        let f = t.distal_force(0.0);
+        let f = t.distal_force_n(0.0);
         let tt = t.tensions(f);
         let x = p.friction_coefficient * (180.0 + p.route_wrap_deg).to_radians();
         let expected = f * x.cosh() + 2.0 * p.pretension_n * z * x.sinh();
@@ -608,18 +596,14 @@ mod tests {
             coulomb_friction_n: 0.0,
             ..params()
         };
-        assert!(
-            TendonSheath::new(none, 0.0)
-                .unwrap()
-                .commit(f64::NAN)
-                .is_err()
-        );
-        assert!(
-            TendonSheath::new(params(), 0.0)
-                .unwrap()
-                .commit(f64::INFINITY)
-                .is_err()
-        );
+        assert!(matches!(
+            TendonSheath::new(none, 0.0).unwrap().commit(f64::NAN),
+            Err(ModelError::NonFinite { name: "distal stroke", value }) if value.is_nan()
+        ));
+        assert!(matches!(
+            TendonSheath::new(params(), 0.0).unwrap().commit(f64::INFINITY),
+            Err(ModelError::NonFinite { name: "distal stroke", value }) if value == f64::INFINITY
+        ));
     }
 
     #[test]
@@ -633,12 +617,22 @@ mod tests {
             err.contains("friction_coefficient") && err.contains("-0.1"),
             "{err}"
         );
-        assert!(TendonSheath::new(params(), -10.0).is_err());
-        assert!(TendonSheath::new(params(), f64::NAN).is_err());
+        assert_eq!(
+            expect_range(TendonSheath::new(p, 0.0), "friction_coefficient").value,
+            -0.1
+        );
+        let e = expect_range(TendonSheath::new(params(), -10.0), "sheath_deg");
+        assert_eq!((e.value, e.bounds.min, e.bounds.max), (-10.0, 0.0, 3600.0));
+        assert!(
+            expect_range(TendonSheath::new(params(), f64::NAN), "sheath_deg")
+                .value
+                .is_nan()
+        );
         let p = SheathParams {
             tendon_stiffness_n_per_mm: 0.0,
             ..params()
         };
-        assert!(TendonSheath::new(p, 0.0).is_err());
+        let e = expect_range(TendonSheath::new(p, 0.0), "tendon_stiffness_n_per_mm");
+        assert!(!e.bounds.min_inclusive && e.value == 0.0);
     }
 }

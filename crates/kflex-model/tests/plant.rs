@@ -1,17 +1,24 @@
 //! Behaviour of the whole plant: joint models agree, determinism, bad input.
 
 use kflex_model::{
-    AuroraNoise, Command, JointModelKind, JointParams, ModelError, Plant, PlantConfig, PlantState,
-    SheathParams, Trajectory,
+    AuroraNoise, Bounds, Command, JointModelKind, JointParams, ModelError, Plant, PlantConfig,
+    PlantState, RangeError, SheathParams, Trajectory,
 };
 use proptest::prelude::*;
+
+fn command(theta_c_deg: f64, translation_mm: f64) -> Command {
+    Command {
+        theta_c_deg,
+        translation_mm,
+    }
+}
 
 /// Steps `plant` for k = 1..=n with θ_c = theta(k) deg at translation 0, returns the last state.
 fn ramp(plant: &mut Plant, n: u32, dt: f64, theta: impl Fn(f64) -> f64) -> PlantState {
     let mut last = *plant.state();
     for k in 1..=n {
         let command = Command {
-            theta_deg: theta(f64::from(k)),
+            theta_c_deg: theta(f64::from(k)),
             translation_mm: 0.0,
         };
         last = plant.step(command, dt).unwrap();
@@ -27,18 +34,18 @@ fn drive(config: PlantConfig, seconds: f64, dt: f64) -> Vec<f64> {
         .map(|k| {
             let theta = traj
                 .sample(k as f64 * dt)
-                .theta_deg
+                .theta_d_deg
                 .min(25.0 * (k as f64 * dt)); // gentle start
             plant
                 .step(
                     Command {
-                        theta_deg: theta,
+                        theta_c_deg: theta,
                         translation_mm: 5.0,
                     },
                     dt,
                 )
                 .unwrap()
-                .theta_deg
+                .theta_a_deg
         })
         .collect()
 }
@@ -46,7 +53,7 @@ fn drive(config: PlantConfig, seconds: f64, dt: f64) -> Vec<f64> {
 #[test]
 fn rapier_and_analytic_joints_agree_without_load() {
     let joint = JointParams {
-        gravity_m_s2: [0.0; 3],
+        gravity_m_per_s2: [0.0; 3],
         tip_load_n: [0.0; 3],
         ..JointParams::default()
     };
@@ -88,7 +95,7 @@ fn rapier_gravity_and_tip_load_bend_the_joint_as_the_analytic_model_does() {
         ..JointParams::default()
     };
     let unloaded = JointParams {
-        gravity_m_s2: [0.0; 3],
+        gravity_m_per_s2: [0.0; 3],
         tip_load_n: [0.0; 3],
         ..joint
     };
@@ -99,7 +106,7 @@ fn rapier_gravity_and_tip_load_bend_the_joint_as_the_analytic_model_does() {
             ..PlantConfig::default()
         })
         .unwrap();
-        ramp(&mut plant, 100, 0.02, |k| 0.3 * k).theta_deg
+        ramp(&mut plant, 100, 0.02, |k| 0.3 * k).theta_a_deg
     };
     for model in [JointModelKind::Analytic, JointModelKind::Rapier] {
         let drop = settle(unloaded, model) - settle(joint, model);
@@ -127,7 +134,7 @@ fn same_seed_same_run_other_seed_other_noise() {
                 plant
                     .step(
                         Command {
-                            theta_deg: f64::from(k) * 0.2,
+                            theta_c_deg: f64::from(k) * 0.2,
                             translation_mm: 1.0,
                         },
                         0.01,
@@ -145,26 +152,30 @@ fn same_seed_same_run_other_seed_other_noise() {
     assert!(
         a.iter()
             .zip(&c)
-            .any(|(x, y)| x.measured_theta_deg != y.measured_theta_deg)
+            .any(|(x, y)| x.theta_a_measured_deg != y.theta_a_measured_deg)
     );
     // noise touches the measurement only
-    assert!(a.iter().zip(&c).all(|(x, y)| x.theta_deg == y.theta_deg));
+    assert!(
+        a.iter()
+            .zip(&c)
+            .all(|(x, y)| x.theta_a_deg == y.theta_a_deg)
+    );
     // reset gives the same run again
     let mut plant = Plant::new(config).unwrap();
     plant
         .step(
             Command {
-                theta_deg: 40.0,
+                theta_c_deg: 40.0,
                 translation_mm: 1.0,
             },
             0.01,
         )
         .unwrap();
-    plant.reset();
+    plant.reset().unwrap();
     let first = plant
         .step(
             Command {
-                theta_deg: 0.0,
+                theta_c_deg: 0.0,
                 translation_mm: 1.0,
             },
             0.01,
@@ -186,7 +197,7 @@ fn hysteresis_grows_with_the_sheath_bend() {
             0.01,
         );
         let traj = Trajectory::paper().sampler().unwrap();
-        traj.sample(1.5).theta_deg - d[150]
+        traj.sample(1.5).theta_d_deg - d[150]
     };
     let lags: Vec<f64> = [0.0, 90.0, 180.0, 270.0].into_iter().map(lag).collect();
     assert!(lags.windows(2).all(|w| w[1] > w[0]), "{lags:?}");
@@ -198,67 +209,62 @@ fn bad_commands_are_typed_errors_and_change_nothing() {
     plant
         .step(
             Command {
-                theta_deg: 20.0,
+                theta_c_deg: 20.0,
                 translation_mm: 3.0,
             },
             0.01,
         )
         .unwrap();
     let before = *plant.state();
-    let cases = [
+    // each bad command, the error it must give (variant, quantity, value)
+    let cases: [(Command, f64, &str, &str, f64); 7] = [
         (
-            Command {
-                theta_deg: f64::NAN,
-                translation_mm: 3.0,
-            },
+            command(f64::NAN, 3.0),
             0.01,
-        ),
-        (
-            Command {
-                theta_deg: f64::INFINITY,
-                translation_mm: 3.0,
-            },
-            0.01,
-        ),
-        (
-            Command {
-                theta_deg: 200.0,
-                translation_mm: 3.0,
-            },
-            0.01,
-        ),
-        (
-            Command {
-                theta_deg: 10.0,
-                translation_mm: -1.0,
-            },
-            0.01,
-        ),
-        (
-            Command {
-                theta_deg: 10.0,
-                translation_mm: 3.0,
-            },
-            0.0,
-        ),
-        (
-            Command {
-                theta_deg: 10.0,
-                translation_mm: 3.0,
-            },
-            -0.01,
-        ),
-        (
-            Command {
-                theta_deg: 10.0,
-                translation_mm: 3.0,
-            },
+            "NonFinite",
+            "theta_c_deg",
             f64::NAN,
         ),
+        (
+            command(f64::INFINITY, 3.0),
+            0.01,
+            "NonFinite",
+            "theta_c_deg",
+            f64::INFINITY,
+        ),
+        (
+            command(200.0, 3.0),
+            0.01,
+            "OutOfWorkspace",
+            "theta_c_deg",
+            200.0,
+        ),
+        (
+            command(10.0, -1.0),
+            0.01,
+            "OutOfWorkspace",
+            "translation_mm",
+            -1.0,
+        ),
+        (command(10.0, 3.0), 0.0, "OutOfRange", "dt_s", 0.0),
+        (command(10.0, 3.0), -0.01, "OutOfRange", "dt_s", -0.01),
+        (command(10.0, 3.0), f64::NAN, "OutOfRange", "dt_s", f64::NAN),
     ];
-    for (command, dt) in cases {
+    let same = |a: f64, b: f64| a == b || (a.is_nan() && b.is_nan());
+    for (command, dt, variant, name, value) in cases {
         let err = plant.step(command, dt).unwrap_err();
-        assert!(!err.to_string().is_empty());
+        let ok = match (&err, variant) {
+            (ModelError::NonFinite { name: n, value: v }, "NonFinite") => {
+                *n == name && same(*v, value)
+            }
+            (ModelError::OutOfWorkspace(e), "OutOfWorkspace")
+            | (ModelError::OutOfRange(e), "OutOfRange") => e.name == name && same(e.value, value),
+            _ => false,
+        };
+        assert!(
+            ok,
+            "{command:?} dt={dt}: expected {variant} of {name} = {value}, got {err:?}"
+        );
         assert_eq!(
             *plant.state(),
             before,
@@ -268,7 +274,7 @@ fn bad_commands_are_typed_errors_and_change_nothing() {
     let err = plant
         .step(
             Command {
-                theta_deg: 200.0,
+                theta_c_deg: 200.0,
                 translation_mm: 3.0,
             },
             0.01,
@@ -276,12 +282,11 @@ fn bad_commands_are_typed_errors_and_change_nothing() {
         .unwrap_err();
     assert_eq!(
         err,
-        ModelError::OutOfWorkspace {
-            name: "theta_deg",
+        ModelError::OutOfWorkspace(RangeError {
+            name: "theta_c_deg",
             value: 200.0,
-            min: -120.0,
-            max: 120.0
-        }
+            bounds: Bounds::closed(-120.0, 120.0),
+        })
     );
     assert!(err.to_string().contains("[-120, 120]"), "{err}");
     // and it carries on normally afterwards
@@ -289,7 +294,7 @@ fn bad_commands_are_typed_errors_and_change_nothing() {
         plant
             .step(
                 Command {
-                    theta_deg: 21.0,
+                    theta_c_deg: 21.0,
                     translation_mm: 3.0
                 },
                 0.01
@@ -371,7 +376,7 @@ fn translation_follows_within_its_speed_limit() {
     let s = plant
         .step(
             Command {
-                theta_deg: 0.0,
+                theta_c_deg: 0.0,
                 translation_mm: 30.0,
             },
             0.1,
@@ -386,7 +391,7 @@ fn translation_follows_within_its_speed_limit() {
         plant
             .step(
                 Command {
-                    theta_deg: 0.0,
+                    theta_c_deg: 0.0,
                     translation_mm: 30.0,
                 },
                 0.1,
@@ -405,13 +410,13 @@ fn joint_range_covers_over_and_undershoot() {
         low = plant
             .step(
                 Command {
-                    theta_deg: -0.3 * f64::from(k),
+                    theta_c_deg: -0.3 * f64::from(k),
                     translation_mm: 0.0,
                 },
                 0.01,
             )
             .unwrap()
-            .theta_deg;
+            .theta_a_deg;
     }
     assert!(low < -45.0, "{low}");
 }
@@ -425,12 +430,12 @@ proptest! {
     ) {
         let mut plant = Plant::new(PlantConfig { sheath_deg, ..PlantConfig::default() }).unwrap();
         for (theta_deg, translation_mm, dt) in commands {
-            let s = plant.step(Command { theta_deg, translation_mm }, dt).unwrap();
-            for v in [s.theta_deg, s.translation_mm, s.differential_force_n, s.tensions.a_distal_n, s.tensions.b_distal_n,
+            let s = plant.step(Command { theta_c_deg: theta_deg, translation_mm }, dt).unwrap();
+            for v in [s.theta_a_deg, s.translation_mm, s.differential_force_n, s.tensions.a_distal_n, s.tensions.b_distal_n,
                       s.tensions.a_proximal_n, s.tensions.b_proximal_n, s.friction_state] {
                 prop_assert!(v.is_finite());
             }
-            prop_assert!(s.theta_deg.abs() <= 120.0 + 1e-9);
+            prop_assert!(s.theta_a_deg.abs() <= 120.0 + 1e-9);
             prop_assert!(s.tensions.a_distal_n >= 0.0 && s.tensions.b_distal_n >= 0.0);
             prop_assert!(s.friction_state.abs() <= 1.0 + 1e-12);
         }
@@ -458,17 +463,17 @@ fn swing_and_dead_zone(sheath_deg: f64) -> (f64, f64) {
     for k in 0..n {
         let s = traj.sample(k as f64 * dt);
         out.push((
-            s.theta_deg,
+            s.theta_d_deg,
             plant
                 .step(
                     Command {
-                        theta_deg: s.theta_deg,
+                        theta_c_deg: s.theta_d_deg,
                         translation_mm: 0.0,
                     },
                     dt,
                 )
                 .unwrap()
-                .theta_deg,
+                .theta_a_deg,
         ));
     }
     let second = &out[n / 2..];
@@ -548,11 +553,11 @@ fn joint_follows_its_path_under_compressive_tip_loads() {
         .unwrap();
         let mut last = 0.0f64;
         for k in 0..1300 {
-            let theta_deg = 50.0 * (std::f64::consts::TAU * f64::from(k) / 629.0).sin();
+            let theta_c_deg = 50.0 * (std::f64::consts::TAU * f64::from(k) / 629.0).sin();
             let s = plant
                 .step(
                     Command {
-                        theta_deg,
+                        theta_c_deg,
                         translation_mm: 0.0,
                     },
                     0.01,
@@ -560,11 +565,11 @@ fn joint_follows_its_path_under_compressive_tip_loads() {
                 .unwrap();
             // tick 0 settles under the load from the unloaded reset pose; from then on, continuity
             assert!(
-                k == 0 || (s.theta_deg - last).abs() < 5.0 || s.theta_deg.abs() >= 119.999,
+                k == 0 || (s.theta_a_deg - last).abs() < 5.0 || s.theta_a_deg.abs() >= 119.999,
                 "sheath {sheath_deg}, load {load:?}: tick {k} jumped {last:.2} -> {:.2}",
-                s.theta_deg
+                s.theta_a_deg
             );
-            last = s.theta_deg;
+            last = s.theta_a_deg;
         }
     }
 }

@@ -2,10 +2,9 @@
 //! independent ray cast (parry's capsules), resolution of the 48×48 region of
 //! interest, and bad input.
 
-use kflex_model::ModelError;
-use kflex_model::camera::{Camera, Intrinsics};
-use kflex_model::instrument::{Instrument, InstrumentShape};
-use kflex_model::raster::{Mask, Rasterizer};
+use kflex_model::{
+    Camera, Instrument, InstrumentShape, Intrinsics, Mask, ModelError, RangeError, Rasterizer, Roi,
+};
 use nalgebra::Point3;
 use rapier3d::math::{Pose, Vector as PVec};
 use rapier3d::parry::query::{Ray, RayCast};
@@ -30,7 +29,7 @@ fn ray_cast(camera: &Camera, shape: &InstrumentShape) -> Mask {
     let capsules: Vec<ParryCapsule> = shape
         .capsules
         .iter()
-        .map(|c| ParryCapsule::new(to_cam(c.a), to_cam(c.b), c.radius as f32))
+        .map(|c| ParryCapsule::new(to_cam(c.a_mm), to_cam(c.b_mm), c.radius_mm as f32))
         .collect();
     let mut data = vec![0u8; (k.width * k.height) as usize];
     for y in 0..k.height {
@@ -55,7 +54,7 @@ fn roi(camera: &Camera, instrument: &Instrument, thetas: &[f64], ds: &[f64]) -> 
         for &d in ds {
             let shape = instrument.shape(theta, d).unwrap();
             for c in &shape.capsules[1..] {
-                for p in [c.a, c.b] {
+                for p in [c.a_mm, c.b_mm] {
                     let uv = camera.project(p).unwrap();
                     for i in 0..2 {
                         lo[i] = lo[i].min(uv[i]);
@@ -204,28 +203,49 @@ fn rendering_is_deterministic() {
     assert_eq!(render(&camera, &shape), render(&camera, &shape));
 }
 
+/// The range error of `result`, which must be out of range (or out of the workspace).
+fn range_of<T: std::fmt::Debug>(result: Result<T, ModelError>) -> RangeError {
+    match result {
+        Err(ref e) if e.range().is_some() => *e.range().unwrap(),
+        other => panic!("expected a range error, got {other:?}"),
+    }
+}
+
 #[test]
 fn bad_input_is_a_typed_error() {
     let instrument = Instrument::kflex();
+    match instrument.shape(130.0, 5.0) {
+        Err(ModelError::OutOfWorkspace(e)) => {
+            assert_eq!(
+                (e.name, e.value, e.bounds.min, e.bounds.max),
+                ("theta_deg", 130.0, -120.0, 120.0)
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+    match instrument.shape(10.0, 55.0) {
+        Err(ModelError::OutOfWorkspace(e)) => {
+            assert_eq!(
+                (e.name, e.value, e.bounds.min, e.bounds.max),
+                ("translation_mm", 55.0, 0.0, 40.0)
+            );
+        }
+        other => panic!("{other:?}"),
+    }
     assert!(matches!(
-        instrument.shape(130.0, 5.0),
-        Err(ModelError::OutOfWorkspace {
+        instrument.shape(f64::NAN, 5.0),
+        Err(ModelError::NonFinite {
             name: "theta_deg",
             ..
         })
     ));
-    assert!(matches!(
-        instrument.shape(10.0, 55.0),
-        Err(ModelError::OutOfWorkspace {
-            name: "translation_mm",
-            ..
-        })
-    ));
-    assert!(matches!(
-        instrument.shape(f64::NAN, 5.0),
-        Err(ModelError::NonFinite { .. })
-    ));
-    assert!(Mask::new(0, 10).is_err());
+    let e = range_of(Mask::new(0, 10));
+    assert_eq!((e.name, e.value, e.bounds.min), ("image width", 0.0, 1.0));
+    let e = range_of(Mask::new(10, 20_000));
+    assert_eq!(
+        (e.name, e.value, e.bounds.max),
+        ("image height", 20_000.0, 16384.0)
+    );
     assert!(matches!(
         Mask::from_raw(4, 4, vec![0; 15]),
         Err(ModelError::ImageSize {
@@ -236,26 +256,59 @@ fn bad_input_is_a_typed_error() {
     ));
     let mut wrong = Mask::new(10, 10).unwrap();
     let shape = instrument.shape(10.0, 5.0).unwrap();
-    assert!(
-        Rasterizer::new()
-            .silhouette(&Camera::default(), &shape, &mut wrong)
-            .is_err()
-    );
-    assert!(
-        Mask::new(3, 3)
-            .unwrap()
-            .iou(&Mask::new(4, 3).unwrap())
-            .is_err()
-    );
+    assert!(matches!(
+        Rasterizer::new().silhouette(&Camera::default(), &shape, &mut wrong),
+        Err(ModelError::ImageSize {
+            width: 640,
+            height: 480,
+            got: 100,
+            ..
+        })
+    ));
+    assert!(matches!(
+        Mask::new(3, 3).unwrap().iou(&Mask::new(4, 3).unwrap()),
+        Err(ModelError::ImageSize {
+            width: 3,
+            height: 3,
+            expected: 9,
+            got: 12,
+            ..
+        })
+    ));
     let m = Mask::from_raw(3, 2, vec![1, 0, 1, 0, 1, 1]).unwrap();
+    let window = |x0, y0, width, height| Roi {
+        x0,
+        y0,
+        width,
+        height,
+    };
     assert_eq!(
-        m.crop(1, 0, 2, 2).unwrap(),
+        m.crop(window(1, 0, 2, 2)).unwrap(),
         Mask::from_raw(2, 2, vec![0, 1, 1, 1]).unwrap()
     );
-    assert!(m.crop(2, 0, 2, 1).is_err(), "window past the right edge");
-    assert!(m.crop(0, 0, 0, 1).is_err(), "empty window");
-    assert!(Intrinsics::from_fov(0, 480, 90.0).is_err());
-    assert!(Intrinsics::from_fov(640, 480, 180.0).is_err());
+    let e = range_of(m.crop(window(2, 0, 2, 1)));
+    assert_eq!(
+        (e.name, e.value, e.bounds.max),
+        ("roi.x0 + roi.width", 4.0, 3.0),
+        "window past the right edge"
+    );
+    let e = range_of(m.crop(window(0, 1, 1, 2)));
+    assert_eq!(
+        (e.name, e.value, e.bounds.max),
+        ("roi.y0 + roi.height", 3.0, 2.0),
+        "window past the bottom"
+    );
+    assert_eq!(
+        range_of(m.crop(window(0, 0, 0, 1))).name,
+        "roi.width",
+        "empty window"
+    );
+    assert_eq!(
+        range_of(Intrinsics::from_fov(0, 480, 90.0)).name,
+        "image width"
+    );
+    let e = range_of(Intrinsics::from_fov(640, 480, 180.0));
+    assert_eq!((e.name, e.value), ("hfov_deg", 180.0));
 }
 
 #[test]
@@ -272,7 +325,18 @@ fn a_mask_refilled_row_by_row_equals_one_built_whole() {
     // non-zero reads as set, stored as 1
     assert_eq!(m, whole);
     assert!(m.data().iter().all(|&v| v <= 1));
-    assert!(m.set_row(5, &[0; 7]).is_err());
-    assert!(m.set_row(0, &[0; 6]).is_err());
-    assert!(m.reshape(0, 3).is_err());
+    let e = range_of(m.set_row(5, &[0; 7]));
+    assert_eq!(
+        (e.name, e.value, e.bounds.max, e.bounds.max_inclusive),
+        ("mask row", 5.0, 5.0, false)
+    );
+    assert!(matches!(
+        m.set_row(0, &[0; 6]),
+        Err(ModelError::ImageSize {
+            expected: 7,
+            got: 6,
+            ..
+        })
+    ));
+    assert_eq!(range_of(m.reshape(0, 3)).name, "image width");
 }

@@ -1,13 +1,13 @@
 //! Shaded frames: determinism, distinct backgrounds, the tape's area and place,
 //! masks consistent with the silhouette, bad input.
 
+use kflex_model::Instrument;
 use kflex_model::ModelError;
-use kflex_model::camera::{Camera, Intrinsics};
-use kflex_model::instrument::Instrument;
-use kflex_model::raster::{Mask, Rasterizer};
-use kflex_model::scene::{Background, FrameParams, Occlusion, SceneRenderer};
+use kflex_model::{Background, FrameParams, Occlusion, SceneRenderer};
+use kflex_model::{Camera, Intrinsics};
+use kflex_model::{Mask, Rasterizer};
 
-fn frame(params: FrameParams) -> kflex_model::scene::Frame {
+fn frame(params: FrameParams) -> kflex_model::Frame {
     let shape = Instrument::kflex().shape(30.0, 10.0).unwrap();
     SceneRenderer::new()
         .render(&Camera::default(), &shape, &params)
@@ -72,7 +72,7 @@ fn tape_covers_the_requested_share_where_asked() {
             .iter()
             .rfind(|c| matches!(c.part, kflex_model::Part::Link(_)))
             .unwrap();
-        camera.project(last.b).unwrap()
+        camera.project(last.b_mm).unwrap()
     };
     for (fraction, position) in [(0.2, 0.5), (0.4, 0.5), (0.4, 1.0), (0.4, 0.0), (0.7, 0.3)] {
         let f = frame(FrameParams {
@@ -110,7 +110,7 @@ fn illumination_gain_brightens_and_noise_perturbs() {
         noise_std: 0.0,
         ..FrameParams::default()
     };
-    let sum = |f: &kflex_model::scene::Frame| f.rgb.iter().map(|&v| u64::from(v)).sum::<u64>();
+    let sum = |f: &kflex_model::Frame| f.rgb.iter().map(|&v| u64::from(v)).sum::<u64>();
     let dim = frame(FrameParams {
         illumination_gain: 0.6,
         ..base
@@ -200,31 +200,44 @@ fn bad_input_is_a_typed_error() {
     assert_eq!("Larynx".parse::<Background>().unwrap(), Background::Larynx);
     let shape = Instrument::kflex().shape(10.0, 5.0).unwrap();
     let mut r = SceneRenderer::new();
-    for bad in [
-        FrameParams {
-            noise_std: -0.1,
-            ..FrameParams::default()
-        },
-        FrameParams {
-            illumination_gain: f64::NAN,
-            ..FrameParams::default()
-        },
-        FrameParams {
-            occlusion: Some(Occlusion {
-                fraction: 1.5,
-                position: 0.5,
-            }),
-            ..FrameParams::default()
-        },
+    for (bad, name) in [
+        (
+            FrameParams {
+                noise_std: -0.1,
+                ..FrameParams::default()
+            },
+            "noise_std",
+        ),
+        (
+            FrameParams {
+                illumination_gain: f64::NAN,
+                ..FrameParams::default()
+            },
+            "illumination_gain",
+        ),
+        (
+            FrameParams {
+                occlusion: Some(Occlusion {
+                    fraction: 1.5,
+                    position: 0.5,
+                }),
+                ..FrameParams::default()
+            },
+            "occlusion.fraction",
+        ),
     ] {
-        assert!(
-            r.render(&Camera::default(), &shape, &bad).is_err(),
-            "{bad:?}"
-        );
+        let err = r.render(&Camera::default(), &shape, &bad).unwrap_err();
+        assert_eq!(err.range().map(|e| e.name), Some(name), "{bad:?}: {err}");
     }
     let zero = Camera::default().with_intrinsics(Intrinsics {
         width: 0,
         ..Intrinsics::default()
     });
-    assert!(r.render(&zero, &shape, &FrameParams::default()).is_err());
+    let err = r
+        .render(&zero, &shape, &FrameParams::default())
+        .unwrap_err();
+    assert_eq!(
+        err.range().map(|e| (e.name, e.value)),
+        Some(("image width", 0.0))
+    );
 }

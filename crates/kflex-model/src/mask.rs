@@ -1,0 +1,181 @@
+//! [`Mask`]: the binary image every stage shares (silhouettes, segmentations,
+//! ground truth), and the one check of image sizes.
+
+use crate::error::{ModelError, Result};
+use crate::range::{Bounds, RangeError};
+use crate::roi::Roi;
+
+/// Largest image side, px: above any endoscope's sensor (a 4K one is 3840 px wide).
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
+/// Checks an image size: each side in `[1, MAX_IMAGE_SIDE]` px.
+pub(crate) fn check_image_size(width: u32, height: u32) -> Result<()> {
+    let side = Bounds::closed(1.0, f64::from(MAX_IMAGE_SIDE));
+    side.check("image width", f64::from(width))?;
+    side.check("image height", f64::from(height))?;
+    Ok(())
+}
+
+/// A binary image: one byte per pixel, 0 or 1, row-major.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Mask {
+    width: u32,
+    height: u32,
+    data: Vec<u8>,
+}
+
+impl Mask {
+    /// An empty mask. Zero width or height is an error.
+    pub fn new(width: u32, height: u32) -> Result<Self> {
+        check_image_size(width, height)?;
+        Ok(Self {
+            width,
+            height,
+            data: vec![0; width as usize * height as usize],
+        })
+    }
+
+    /// A mask over `data` (row-major, non-zero = set); its length must be `width × height`.
+    pub fn from_raw(width: u32, height: u32, data: Vec<u8>) -> Result<Self> {
+        check_image_size(width, height)?;
+        let expected = width as usize * height as usize;
+        if data.len() != expected {
+            return Err(ModelError::ImageSize {
+                what: "mask buffer",
+                width,
+                height,
+                expected,
+                got: data.len(),
+            });
+        }
+        Ok(Self {
+            width,
+            height,
+            data: data.into_iter().map(|v| u8::from(v != 0)).collect(),
+        })
+    }
+
+    /// Width, px.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height, px.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// Pixels, row-major, 0 or 1.
+    pub fn data(&self) -> &[u8] {
+        &self.data
+    }
+
+    /// Whether pixel `(x, y)` is set (false outside the image).
+    pub fn get(&self, x: u32, y: u32) -> bool {
+        x < self.width && y < self.height && self.data[(y * self.width + x) as usize] != 0
+    }
+
+    /// Number of set pixels.
+    pub fn count(&self) -> usize {
+        self.data.iter().filter(|&&v| v != 0).count()
+    }
+
+    /// The window `roi` of this mask; it must lie inside.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the axis of `roi` that is empty or
+    /// reaches past the mask's edge.
+    pub fn crop(&self, roi: Roi) -> Result<Mask> {
+        roi.check_within(self.width, self.height)?;
+        let Roi {
+            x0,
+            y0,
+            width,
+            height,
+        } = roi;
+        let mut data = Vec::with_capacity(width as usize * height as usize);
+        for y in y0..y0 + height {
+            let row = (y * self.width + x0) as usize;
+            data.extend_from_slice(&self.data[row..row + width as usize]);
+        }
+        Ok(Mask {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// Clears every pixel.
+    pub fn clear(&mut self) {
+        self.data.fill(0);
+    }
+
+    /// Intersection over union with `other` (1 when both are empty). Sizes must match.
+    pub fn iou(&self, other: &Mask) -> Result<f64> {
+        if (self.width, self.height) != (other.width, other.height) {
+            return Err(ModelError::ImageSize {
+                what: "masks compared",
+                width: self.width,
+                height: self.height,
+                expected: self.data.len(),
+                got: other.data.len(),
+            });
+        }
+        let (mut inter, mut union) = (0usize, 0usize);
+        for (a, b) in self.data.iter().zip(&other.data) {
+            inter += usize::from(*a != 0 && *b != 0);
+            union += usize::from(*a != 0 || *b != 0);
+        }
+        Ok(if union == 0 {
+            1.0
+        } else {
+            inter as f64 / union as f64
+        })
+    }
+
+    /// Makes this a clear `width × height` mask, keeping the allocation where it
+    /// is large enough (for loops that refill one mask frame after frame).
+    pub fn reshape(&mut self, width: u32, height: u32) -> Result<()> {
+        check_image_size(width, height)?;
+        self.width = width;
+        self.height = height;
+        self.data.clear();
+        self.data.resize(width as usize * height as usize, 0);
+        Ok(())
+    }
+
+    /// Writes row `y` from `row` (non-zero = set); `row` must be one row long.
+    pub fn set_row(&mut self, y: u32, row: &[u8]) -> Result<()> {
+        if y >= self.height {
+            return Err(RangeError {
+                name: "mask row",
+                value: f64::from(y),
+                bounds: Bounds::closed_open(0.0, f64::from(self.height)),
+            }
+            .into());
+        }
+        if row.len() != self.width as usize {
+            return Err(ModelError::ImageSize {
+                what: "mask row",
+                width: self.width,
+                height: self.height,
+                expected: self.width as usize,
+                got: row.len(),
+            });
+        }
+        let start = y as usize * self.width as usize;
+        for (d, &v) in self.data[start..start + row.len()].iter_mut().zip(row) {
+            *d = u8::from(v != 0);
+        }
+        Ok(())
+    }
+
+    /// Sets pixels `first..=last` of the row-major buffer.
+    pub(crate) fn fill_span(&mut self, first: usize, last: usize) {
+        self.data[first..=last].fill(1);
+    }
+
+    pub(crate) fn set(&mut self, x: usize, y: usize) {
+        self.data[y * self.width as usize + x] = 1;
+    }
+}
