@@ -1,0 +1,153 @@
+//! The endoscope camera's sensor: illumination gain, optical blur, Gaussian
+//! noise and 8-bit quantisation.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+/// Size of the table of standard-normal samples behind the sensor noise.
+const NORMALS: usize = 1 << 16;
+
+/// The standard-normal table behind the sensor noise (fixed seed: the table
+/// is a constant of the simulator, each frame reads it in its own order).
+pub(super) fn normal_table() -> Vec<f32> {
+    let mut rng = ChaCha8Rng::seed_from_u64(0x6e6f_6973_6500_0000);
+    (0..NORMALS)
+        .map(|_| Distribution::<f32>::sample(&StandardNormal, &mut rng))
+        .collect()
+}
+
+/// The sensor model: gain, Gaussian noise from the table indexed by a
+/// counter-based hash (SplitMix64's finaliser; a Gaussian per pixel and
+/// channel at a fraction of a sampler's cost), 8 bits.
+pub(super) struct Sensor<'a> {
+    pub(super) normals: &'a [f32],
+    pub(super) key: u64,
+    pub(super) gain: f32,
+    pub(super) sigma: f32,
+}
+
+impl Sensor<'_> {
+    /// 64 random bits for the group of four values from `group · 4` on: a
+    /// counter-based hash (SplitMix64's finaliser), so values need no order and
+    /// carry no dependency from one to the next.
+    #[inline(always)]
+    fn bits(&self, group: usize) -> u64 {
+        let mut z = self
+            .key
+            .wrapping_add((group as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Gaussian noise from 16 of `bits`, lane 0–3.
+    #[inline(always)]
+    fn noise(&self, bits: u64, lane: usize) -> f32 {
+        self.sigma * self.normals[((bits >> (16 * lane)) & 0xFFFF) as usize]
+    }
+
+    #[inline(always)]
+    fn quantise(&self, v: f32, noise: f32) -> u8 {
+        // v ≥ 0 after the clamp, so adding ½ and truncating rounds to nearest
+        ((v * self.gain + noise).clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+    }
+
+    /// Value `i` of the image (`3 · pixel + channel`) as the sensor reads it.
+    pub(super) fn pixel(&self, i: usize, v: f32) -> u8 {
+        let noise = if self.sigma > 0.0 {
+            self.noise(self.bits(i / 4), i % 4)
+        } else {
+            0.0
+        };
+        self.quantise(v, noise)
+    }
+
+    /// The whole image as the sensor reads it: `pixel(i, values[i])` for every `i`.
+    pub(super) fn image(&self, values: &[f32]) -> Vec<u8> {
+        let mut out = vec![0u8; values.len()];
+        if self.sigma > 0.0 {
+            let mut groups = out.chunks_exact_mut(4).zip(values.chunks_exact(4));
+            for (g, (o, v)) in groups.by_ref().enumerate() {
+                let bits = self.bits(g);
+                for lane in 0..4 {
+                    o[lane] = self.quantise(v[lane], self.noise(bits, lane));
+                }
+            }
+        } else {
+            for (o, &v) in out.iter_mut().zip(values) {
+                *o = self.quantise(v, 0.0);
+            }
+        }
+        let tail = values.len() - values.len() % 4;
+        for i in tail..values.len() {
+            out[i] = self.pixel(i, values[i]);
+        }
+        out
+    }
+}
+
+/// Separable Gaussian blur of an RGB f32 image in place.
+pub(super) fn gaussian_blur(img: &mut [f32], w: usize, h: usize, sigma: f64) {
+    let radius = (3.0 * sigma).ceil() as isize;
+    let kernel: Vec<f32> = (-radius..=radius)
+        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp() as f32)
+        .collect();
+    let norm: f32 = kernel.iter().sum();
+    let mut tmp = vec![0.0f32; img.len()];
+    for pass in 0..2 {
+        let (src, dst): (&[f32], &mut [f32]) = if pass == 0 {
+            (img, &mut tmp)
+        } else {
+            (&tmp, img)
+        };
+        let src = src.to_vec();
+        for y in 0..h as isize {
+            for x in 0..w as isize {
+                let mut acc = [0.0f32; 3];
+                for (j, kv) in kernel.iter().enumerate() {
+                    let o = j as isize - radius;
+                    let (sx, sy) = if pass == 0 {
+                        ((x + o).clamp(0, w as isize - 1), y)
+                    } else {
+                        (x, (y + o).clamp(0, h as isize - 1))
+                    };
+                    let i = 3 * (sy as usize * w + sx as usize);
+                    for ch in 0..3 {
+                        acc[ch] += kv * src[i + ch];
+                    }
+                }
+                let i = 3 * (y as usize * w + x as usize);
+                for ch in 0..3 {
+                    dst[i + ch] = acc[ch] / norm;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The sensor reads a value the same whether alone or in a whole image.
+    #[test]
+    fn sensor_pixel_and_image_agree() {
+        let normals: Vec<f32> = (0..NORMALS)
+            .map(|i| (i as f32 / NORMALS as f32) - 0.5)
+            .collect();
+        for sigma in [0.0, 0.02] {
+            let sensor = Sensor {
+                normals: &normals,
+                key: 42,
+                gain: 1.1,
+                sigma,
+            };
+            let values: Vec<f32> = (0..1003).map(|i| (i as f32 * 0.37).sin().abs()).collect();
+            let image = sensor.image(&values);
+            for (i, &v) in values.iter().enumerate() {
+                assert_eq!(image[i], sensor.pixel(i, v), "value {i}");
+            }
+        }
+    }
+}
