@@ -1,4 +1,5 @@
 //! `kflex-cli`: reproduce and extend the seed paper's experiments on the kflex testbed.
+#![warn(missing_docs)]
 
 mod paper;
 mod render;

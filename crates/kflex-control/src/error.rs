@@ -36,11 +36,13 @@ pub enum ControlError {
 }
 
 impl ControlError {
-    /// The range error behind this error, whichever crate raised it.
+    /// The range error behind this error (out of range or out of the
+    /// workspace), whichever crate raised it.
     #[must_use]
     pub fn range(&self) -> Option<&RangeError> {
         match self {
-            Self::OutOfRange(e) | Self::Model(ModelError::OutOfRange(e)) => Some(e),
+            Self::OutOfRange(e) => Some(e),
+            Self::Model(e) => e.range(),
             _ => None,
         }
     }

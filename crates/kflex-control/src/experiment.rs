@@ -72,7 +72,7 @@ pub struct Trace {
 pub struct RunMetrics {
     /// RMSE of measured θ_a against θ_d.
     pub rmse_deg: f64,
-    /// Loop width ("maximum hysteresis size", see [`crate::metrics`]).
+    /// Loop width ("maximum hysteresis size", see [`loop_width`](crate::loop_width)).
     pub max_hysteresis_deg: f64,
     /// max e − min e.
     pub error_peak_to_peak_deg: f64,
@@ -80,6 +80,13 @@ pub struct RunMetrics {
 
 impl Trace {
     /// Metrics of this trace, on the measured angle.
+    ///
+    /// # Errors
+    /// As [`rmse`](crate::rmse) and [`loop_width`](crate::loop_width):
+    /// [`ControlError::NotEnoughData`] for an empty trace, series of unequal
+    /// lengths, or a trace without rising and falling samples at a common
+    /// command angle; [`ControlError::NonFiniteSample`] for a NaN or infinite
+    /// sample (indexed into `theta_d_deg` followed by the other series).
     pub fn metrics(&self) -> Result<RunMetrics> {
         Ok(RunMetrics {
             rmse_deg: metrics::rmse(&self.theta_d_deg, &self.theta_a_measured_deg)?,
@@ -108,6 +115,20 @@ impl OpenLoopScenario {
     }
 
     /// Drives `plant` (from its current state) through the scenario and records the evaluated part.
+    ///
+    /// # Errors
+    /// * [`ControlError::OutOfRange`] naming the first setting out of its
+    ///   range, before the plant moves: `periods` outside `(0, 1e4]`,
+    ///   `period_s` outside `(0, 1e5]` s, `dt_s` outside `(0, 10]` s,
+    ///   `pre_roll_s` outside `[0, 1e4)` s, or `periods * period_s / dt_s`
+    ///   (the evaluated ticks) outside `[1, 5e7]`;
+    /// * [`ControlError::Model`] with the trajectory's error
+    ///   ([`Trajectory::sampler`]), also before the plant moves;
+    /// * [`ControlError::Model`] with the plant's error ([`Plant::step`]), e.g.
+    ///   [`ModelError::OutOfWorkspace`] for a `translation_mm` or a θ_d outside
+    ///   the workspace; the plant keeps the ticks it took before.
+    ///
+    /// [`ModelError::OutOfWorkspace`]: kflex_model::ModelError::OutOfWorkspace
     pub fn run(&self, plant: &mut Plant) -> Result<Trace> {
         let sampler = self.validate()?;
         let start = sampler.sample(0.0).theta_d_deg;
@@ -204,6 +225,40 @@ pub struct GridRow {
 
 impl OpenLoopGrid {
     /// Runs every configuration and repeat. Deterministic in `seed`.
+    ///
+    /// # Errors
+    /// Stops at the first failure:
+    /// * [`ControlError::OutOfRange`] naming `repeats` when it is outside
+    ///   `[1, 1000]`; [`ControlError::NotEnoughData`] for no `sheaths_deg`;
+    /// * [`ControlError::Model`] naming `rel_std` for a `spread` above 0.5
+    ///   ([`PlantConfig::perturbed`]), or the first parameter of a run's plant
+    ///   out of its range ([`Plant::new`]), e.g. a sheath angle outside
+    ///   `[0, 3600]` deg or a noise level;
+    /// * as [`OpenLoopScenario::run`] and [`Trace::metrics`] for each run.
+    ///
+    /// # Examples
+    ///
+    /// One short run (one period of the paper's input, one repeat) at a
+    /// 180 deg sheath:
+    ///
+    /// ```
+    /// use kflex_control::{OpenLoopGrid, OpenLoopScenario};
+    /// let grid = OpenLoopGrid {
+    ///     sheaths_deg: vec![180.0],
+    ///     repeats: 1,
+    ///     scenario: OpenLoopScenario { periods: 1.0, ..OpenLoopScenario::default() },
+    ///     ..OpenLoopGrid::default()
+    /// };
+    /// let rows = grid.run()?;
+    /// assert_eq!(rows.len(), 1);
+    /// let row = &rows[0];
+    /// assert_eq!(row.sheath_deg, 180.0);
+    /// assert_eq!(row.seeds, [grid.seed]);
+    /// // the uncompensated joint misses the command and lags it in a loop
+    /// assert!(row.rmse.mean > 0.0 && row.max_hysteresis.mean > 0.0);
+    /// assert_eq!(row.rmse.std, 0.0); // a single repeat
+    /// # Ok::<(), kflex_control::ControlError>(())
+    /// ```
     pub fn run(&self) -> Result<Vec<GridRow>> {
         Bounds::closed(1.0, 1000.0).check("repeats", f64::from(self.repeats))?;
         if self.sheaths_deg.is_empty() {

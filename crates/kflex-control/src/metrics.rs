@@ -24,6 +24,11 @@ use crate::error::{ControlError, Result};
 pub const LOOP_BIN_DEG: f64 = 1.0;
 
 /// Root-mean-square of `actual − desired`.
+///
+/// # Errors
+/// [`ControlError::NotEnoughData`] when the series are empty or of unequal
+/// lengths; [`ControlError::NonFiniteSample`] for the first NaN or infinite
+/// sample, indexed into `desired` followed by `actual`.
 pub fn rmse(desired: &[f64], actual: &[f64]) -> Result<f64> {
     check_pair("rmse", desired, actual)?;
     let sum: f64 = desired
@@ -35,6 +40,11 @@ pub fn rmse(desired: &[f64], actual: &[f64]) -> Result<f64> {
 }
 
 /// `max e − min e` with `e = actual − desired`.
+///
+/// # Errors
+/// [`ControlError::NotEnoughData`] when the series are empty or of unequal
+/// lengths; [`ControlError::NonFiniteSample`] for the first NaN or infinite
+/// sample, indexed into `desired` followed by `actual`.
 pub fn error_peak_to_peak(desired: &[f64], actual: &[f64]) -> Result<f64> {
     check_pair("error_peak_to_peak", desired, actual)?;
     let (lo, hi) = desired
@@ -45,8 +55,19 @@ pub fn error_peak_to_peak(desired: &[f64], actual: &[f64]) -> Result<f64> {
     Ok(hi - lo)
 }
 
-/// Hysteresis loop width (the "maximum hysteresis size", see the module docs), deg.
+/// Hysteresis loop width (kflex's reading of the paper's "maximum hysteresis
+/// size"), deg: the largest gap, at equal command, between the mean output on
+/// the falling branch and on the rising branch, with the samples binned by
+/// `desired` in bins of [`LOOP_BIN_DEG`]. A pure gain error or a constant
+/// offset has width 0; a backlash of half-width `b` has width `2b`.
 /// `rate` is the command's rate; samples with zero rate belong to neither branch.
+///
+/// # Errors
+/// [`ControlError::NotEnoughData`] when the series are empty or of unequal
+/// lengths, or when no bin holds both rising and falling samples;
+/// [`ControlError::NonFiniteSample`] for the first NaN or infinite sample,
+/// indexed into `desired` followed by `actual` (then, checked separately,
+/// `desired` followed by `rate`).
 pub fn loop_width(desired: &[f64], rate: &[f64], actual: &[f64]) -> Result<f64> {
     check_pair("loop_width", desired, actual)?;
     check_pair("loop_width", desired, rate)?;
@@ -114,6 +135,10 @@ pub struct MeanStd {
 
 impl MeanStd {
     /// Of a non-empty list.
+    ///
+    /// # Errors
+    /// [`ControlError::NotEnoughData`] for an empty list. Non-finite values
+    /// are not checked: they give a non-finite mean or deviation.
     pub fn of(values: &[f64]) -> Result<Self> {
         if values.is_empty() {
             return Err(ControlError::NotEnoughData {

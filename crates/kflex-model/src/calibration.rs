@@ -8,7 +8,8 @@
 use crate::transmission::SheathParams;
 
 impl Default for SheathParams {
-    /// Defaults fitted to Table IX's uncompensated row ([`FITTED_SHEATH`]).
+    /// Defaults fitted to Table IX's uncompensated row (see "Calibration to the
+    /// paper" in the crate docs).
     fn default() -> Self {
         FITTED_SHEATH
     }

@@ -44,6 +44,13 @@ impl Default for Intrinsics {
 
 impl Intrinsics {
     /// Square pixels, centred principal point, horizontal field of view `hfov_deg`.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming `hfov_deg` when it is outside
+    /// `(1, 179)` deg, or `image width` / `image height` when a side is outside
+    /// `[1, MAX_IMAGE_SIDE]`.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     pub fn from_fov(width: u32, height: u32, hfov_deg: f64) -> Result<Self> {
         Bounds::open(1.0, 179.0).check("hfov_deg", hfov_deg)?;
         let f = 0.5 * f64::from(width) / (0.5 * hfov_deg.to_radians()).tan();
@@ -72,6 +79,15 @@ impl Intrinsics {
     }
 
     /// Checks sizes and focal lengths.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first quantity out of its range:
+    /// `image width` or `image height` outside `[1, MAX_IMAGE_SIDE]`, `fx` or
+    /// `fy` outside `(0, 1e6)` px; [`ModelError::NonFinite`] for a NaN or
+    /// infinite `cx` or `cy`.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
+    /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     pub fn validate(&self) -> Result<()> {
         crate::mask::check_image_size(self.width, self.height)?;
         Bounds::open(0.0, 1e6).check("fx", self.fx)?;
@@ -100,8 +116,15 @@ impl Intrinsics {
     /// resampled to `out_w × out_h` (a region of interest, e.g. IBJAE's 48×48).
     ///
     /// # Errors
-    /// [`crate::ModelError::OutOfRange`] for an empty or huge region, or an output size
-    /// out of `[1, MAX_IMAGE_SIDE]`.
+    /// [`ModelError::OutOfRange`] naming `roi width` or `roi height` when it is
+    /// outside `(0, 1e6)` px (an empty or huge region), `image width` or
+    /// `image height` for an output size out of `[1, MAX_IMAGE_SIDE]`, or `fx`
+    /// or `fy` when the rescaled focal length leaves `(0, 1e6)` px;
+    /// [`ModelError::NonFinite`] naming `cx` or `cy` for a NaN or infinite `x0`
+    /// or `y0`.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
+    /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     pub fn region(&self, x0: f64, y0: f64, w: f64, h: f64, out_w: u32, out_h: u32) -> Result<Self> {
         Bounds::open(0.0, 1e6).check("roi width", w)?;
         Bounds::open(0.0, 1e6).check("roi height", h)?;

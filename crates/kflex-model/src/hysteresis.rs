@@ -47,6 +47,14 @@ impl BoucWenParams {
     }
 
     /// Checks the parameters: `A > 0`, `β + γ > 0`, `β ≥ |γ|`, `1 ≤ n ≤ 10`, `0 ≤ α ≤ 1`.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first parameter out of its range,
+    /// in the order above (`bouc_wen.a`, `bouc_wen.beta + bouc_wen.gamma`,
+    /// `bouc_wen.beta (at least |gamma|)`, `bouc_wen.n`, `bouc_wen.alpha`); a
+    /// NaN or infinite parameter is out of range.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     pub fn validate(&self) -> Result<()> {
         Bounds::open(0.0, f64::INFINITY).check("bouc_wen.a", self.a)?;
         Bounds::open(0.0, f64::INFINITY)
@@ -85,6 +93,14 @@ impl BoucWen {
     pub const MAX_SUBSTEP_FRACTION: f64 = 0.004;
 
     /// A new operator at `x = x0`, `z = 0`.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first parameter out of its range
+    /// (see [`BoucWenParams::validate`]); [`ModelError::NonFinite`] for a NaN
+    /// or infinite `x0`.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
+    /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     pub fn new(params: BoucWenParams, x0: f64) -> Result<Self> {
         params.validate()?;
         finite("bouc_wen.x0", x0)?;
@@ -125,6 +141,11 @@ impl BoucWen {
 
     /// Moves the input to `x` along a straight path and returns the new output.
     /// A non-finite `x` leaves the state unchanged and is an error.
+    ///
+    /// # Errors
+    /// [`ModelError::NonFinite`] for a NaN or infinite `x`.
+    ///
+    /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     pub fn advance(&mut self, x: f64) -> Result<f64> {
         finite("bouc_wen.x", x)?;
         self.z = self.peek(x);
@@ -225,6 +246,13 @@ pub struct Play {
 
 impl Play {
     /// A play operator of half-width `half_width ≥ 0`, output starting at `y0`.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming `play.half_width` when it is negative,
+    /// NaN or infinite; [`ModelError::NonFinite`] for a NaN or infinite `y0`.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
+    /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     pub fn new(half_width: f64, y0: f64) -> Result<Self> {
         Bounds::closed(0.0, f64::MAX).check("play.half_width", half_width)?;
         finite("play.y0", y0)?;
@@ -247,6 +275,11 @@ impl Play {
     }
 
     /// Moves the input to `x`, returns the output. Non-finite `x` is an error and changes nothing.
+    ///
+    /// # Errors
+    /// [`ModelError::NonFinite`] for a NaN or infinite `x`.
+    ///
+    /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     pub fn advance(&mut self, x: f64) -> Result<f64> {
         finite("play.x", x)?;
         self.y = (x - self.half_width).max((x + self.half_width).min(self.y));

@@ -45,6 +45,14 @@ impl Default for InstrumentParams {
 
 impl InstrumentParams {
     /// Checks the parameters.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first field out of its range:
+    /// `channel_offset_mm.x` or `.y` outside `[-100, 100]` mm,
+    /// `shaft_radius_mm` or `jaw_radius_mm` outside `(0, 100)` mm,
+    /// `jaw_opening_deg` outside `[0, 170]` deg (NaN is out of every range).
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     pub fn validate(&self) -> Result<()> {
         Bounds::closed(-100.0, 100.0).check("channel_offset_mm.x", self.channel_offset_mm[0])?;
         Bounds::closed(-100.0, 100.0).check("channel_offset_mm.y", self.channel_offset_mm[1])?;
@@ -105,6 +113,14 @@ pub struct Instrument {
 
 impl Instrument {
     /// Validated instrument.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first parameter out of its range:
+    /// of `joint` ([`JointParams::validate`]), of `params`
+    /// ([`InstrumentParams::validate`]), `n_segments` outside `[1, 16]`, or of
+    /// `translation` ([`TranslationParams::validate`]), checked in that order.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     pub fn new(
         joint: JointParams,
         params: InstrumentParams,
@@ -134,7 +150,15 @@ impl Instrument {
     }
 
     /// The shape at bend `theta_deg` and translation `translation_mm`.
-    /// Outside the mechanical range or the translation limits: [`ModelError::OutOfWorkspace`].
+    ///
+    /// # Errors
+    /// [`ModelError::NonFinite`] for a NaN or infinite `theta_deg` or
+    /// `translation_mm`; [`ModelError::OutOfWorkspace`] naming `theta_deg` past
+    /// the joint's hard stops `±joint.max_theta_deg`, or `translation_mm`
+    /// outside the stage's travel `[translation.min_mm, translation.max_mm]`.
+    ///
+    /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
+    /// [`ModelError::OutOfWorkspace`]: crate::ModelError::OutOfWorkspace
     pub fn shape(&self, theta_deg: f64, translation_mm: f64) -> Result<InstrumentShape> {
         let mut out = InstrumentShape {
             capsules: Vec::with_capacity(2 * self.n_segments as usize + 3),
@@ -145,6 +169,9 @@ impl Instrument {
     }
 
     /// [`Instrument::shape`] into an existing shape, reusing its allocation.
+    ///
+    /// # Errors
+    /// As [`Instrument::shape`]; `out` is then left unchanged.
     pub fn shape_into(
         &self,
         theta_deg: f64,

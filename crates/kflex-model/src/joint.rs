@@ -75,6 +75,14 @@ impl Default for JointParams {
 
 impl JointParams {
     /// Checks the parameters against their physical ranges.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first field out of its range, in
+    /// declaration order (vector components as `gravity_m_per_s2.x`,
+    /// `tip_load_n.z`, …); `max_theta_deg` must lie in `[90, 170]` deg, and a
+    /// NaN or infinite value is out of every range.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     pub fn validate(&self) -> Result<()> {
         Bounds::open(0.0, 1e6).check(
             "contact_stiffness_nmm_per_rad",

@@ -50,6 +50,15 @@ impl TendonGeometry {
     /// Checks the parameters and that Eq. 1 is strictly monotone over
     /// `[-max_theta, max_theta]` (radians), which the inverse needs:
     /// `dΔL_a/dθ = (R−B) sin φ − d_t cos φ < 0 ⇔ tan φ < d_t/(R−B)`.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first field out of its range
+    /// (`n_segments` outside `[1, 16]`, `r_mm` outside `(0, 100)` mm, `b_mm`
+    /// outside `[0, r_mm]`, `tendon_offset_mm` outside `(0, 100)` mm); when
+    /// Eq. 1 is not monotone over `±max_theta_rad`, one named
+    /// `max_theta_deg (Eq. 1 must be monotone over the joint's range)` that
+    /// carries `max_theta_rad` in degrees and, as its bounds, the range this
+    /// geometry allows.
     pub fn validate(&self, max_theta_rad: f64) -> Result<()> {
         Bounds::closed(1.0, 16.0).check("n_segments", f64::from(self.n_segments))?;
         Bounds::open(0.0, 100.0).check("r_mm", self.r_mm)?;
@@ -115,8 +124,13 @@ impl TendonGeometry {
     /// tendon `a`'s path changes by `delta_l_a_mm`.
     ///
     /// Eq. 1 is strictly decreasing over a validated range, so a safeguarded
-    /// Newton iteration on the bracket ([`crate::numeric::root_decreasing`])
-    /// converges for every reachable value.
+    /// Newton iteration on the bracket (bisecting whenever a Newton step
+    /// leaves it) converges for every reachable value.
+    ///
+    /// # Errors
+    /// [`ModelError::NonFinite`] for a NaN or infinite `delta_l_a_mm`;
+    /// [`ModelError::Unreachable`] when `delta_l_a_mm` lies outside
+    /// `[ΔL_a(max_theta), ΔL_a(−max_theta)]`, the range it reports.
     pub fn theta_rad_from_delta_l_a(&self, delta_l_a_mm: f64, max_theta_rad: f64) -> Result<f64> {
         crate::error::finite("delta_l_a_mm", delta_l_a_mm)?;
         let (lo, hi) = (-max_theta_rad, max_theta_rad);

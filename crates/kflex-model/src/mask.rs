@@ -26,6 +26,10 @@ pub struct Mask {
 
 impl Mask {
     /// An empty mask. Zero width or height is an error.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming `image width` or `image height` when
+    /// it is outside `[1, MAX_IMAGE_SIDE]`.
     pub fn new(width: u32, height: u32) -> Result<Self> {
         check_image_size(width, height)?;
         Ok(Self {
@@ -36,6 +40,11 @@ impl Mask {
     }
 
     /// A mask over `data` (row-major, non-zero = set); its length must be `width × height`.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming `image width` or `image height` when
+    /// it is outside `[1, MAX_IMAGE_SIDE]`;
+    /// [`ModelError::ImageSize`] when `data.len()` is not `width × height`.
     pub fn from_raw(width: u32, height: u32, data: Vec<u8>) -> Result<Self> {
         check_image_size(width, height)?;
         let expected = width as usize * height as usize;
@@ -111,6 +120,10 @@ impl Mask {
     }
 
     /// Intersection over union with `other` (1 when both are empty). Sizes must match.
+    ///
+    /// # Errors
+    /// [`ModelError::ImageSize`] when `other`'s width or height differs from
+    /// this mask's.
     pub fn iou(&self, other: &Mask) -> Result<f64> {
         if (self.width, self.height) != (other.width, other.height) {
             return Err(ModelError::ImageSize {
@@ -135,6 +148,10 @@ impl Mask {
 
     /// Makes this a clear `width × height` mask, keeping the allocation where it
     /// is large enough (for loops that refill one mask frame after frame).
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming `image width` or `image height` when
+    /// it is outside `[1, MAX_IMAGE_SIDE]`; the mask is then left unchanged.
     pub fn reshape(&mut self, width: u32, height: u32) -> Result<()> {
         check_image_size(width, height)?;
         self.width = width;
@@ -145,6 +162,11 @@ impl Mask {
     }
 
     /// Writes row `y` from `row` (non-zero = set); `row` must be one row long.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming `mask row` when `y` is not below the
+    /// height; [`ModelError::ImageSize`] when `row.len()` is not the width.
+    /// Nothing is written then.
     pub fn set_row(&mut self, y: u32, row: &[u8]) -> Result<()> {
         if y >= self.height {
             return Err(RangeError {

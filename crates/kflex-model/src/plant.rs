@@ -90,6 +90,16 @@ impl Default for PlantConfig {
 
 impl PlantConfig {
     /// Checks every parameter.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first parameter out of its range,
+    /// checked in this order: the joint's ([`JointParams::validate`]), the
+    /// geometry's ([`TendonGeometry::validate`] over `±joint.max_theta_deg`),
+    /// the sheath's ([`SheathParams::validate`]), `sheath_deg` outside
+    /// `[0, 3600]` deg, the translation stage's
+    /// ([`TranslationParams::validate`]), then, with noise on,
+    /// `noise.theta_std_deg` outside `[0, 90]` deg or
+    /// `noise.translation_std_mm` outside `[0, 100]` mm.
     pub fn validate(&self) -> Result<()> {
         self.joint.validate()?;
         self.geometry
@@ -107,6 +117,11 @@ impl PlantConfig {
     /// A copy whose friction and stiffness parameters are scaled by independent
     /// factors `1 + rel_std · N(0, 1)` (clamped to [0.5, 1.5]): unit-to-unit and
     /// day-to-day spread for repeated experiments. Deterministic in `seed`.
+    /// The copy is not validated here ([`Plant::new`] does that).
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming `rel_std` when it is outside `[0, 0.5]`
+    /// (NaN included).
     pub fn perturbed(&self, seed: u64, rel_std: f64) -> Result<PlantConfig> {
         Bounds::closed(0.0, 0.5).check("rel_std", rel_std)?;
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6b66_6c65_7800_0001);
@@ -273,6 +288,10 @@ impl Plant {
     }
 
     /// Changes the sheath configuration (deg) between ticks, as a surgeon reshaping the endoscope.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming `sheath_deg` when it is outside
+    /// `[0, 3600]` deg (NaN included); the plant is then unchanged.
     pub fn set_sheath_deg(&mut self, sheath_deg: f64) -> Result<()> {
         self.sheath.set_sheath_deg(sheath_deg)?;
         self.config.sheath_deg = sheath_deg;
@@ -296,6 +315,47 @@ impl Plant {
 
     /// Advances by `dt_s` under `command`. A bad command or `dt_s ≤ 0` is an
     /// error and leaves the plant exactly as it was.
+    ///
+    /// # Errors
+    /// A refused input leaves the plant exactly as it was; after
+    /// [`ModelError::Diverged`] its state and transmission are restored (the
+    /// rapier joint's own bodies are not):
+    /// * [`ModelError::OutOfRange`] naming `dt_s` when it is outside `(0, 1000)` s
+    ///   (NaN included);
+    /// * [`ModelError::NonFinite`] for a NaN or infinite `theta_c_deg` or
+    ///   `translation_mm`, [`ModelError::OutOfWorkspace`] for a command past
+    ///   the joint's hard stops or the stage's travel (as
+    ///   [`Plant::check_command`]);
+    /// * [`ModelError::Diverged`] when the joint's solution is not finite
+    ///   (the rapier joint also reports a non-finite joint rate).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use kflex_model::{Command, ModelError, Plant, PlantConfig};
+    /// let mut plant = Plant::new(PlantConfig { sheath_deg: 180.0, ..PlantConfig::default() })?;
+    /// // ramp the command from 0 to 30 deg over 1 s in 10 ms ticks
+    /// for k in 1..=100 {
+    ///     let command = Command { theta_c_deg: 0.3 * f64::from(k), translation_mm: 10.0 };
+    ///     let state = plant.step(command, 0.01)?;
+    ///     assert!(state.theta_a_deg < command.theta_c_deg); // θ_a lags θ_c
+    /// }
+    /// let state = *plant.state();
+    /// assert!(state.theta_a_deg > 0.0 && state.theta_a_deg < 30.0);
+    /// assert!((state.time_s - 1.0).abs() < 1e-9);
+    ///
+    /// // a bad tick is refused with the range it had to be in, and nothing moves
+    /// let hold = Command { theta_c_deg: 30.0, translation_mm: 10.0 };
+    /// let err = plant.step(hold, 0.0).unwrap_err();
+    /// let range = err.range().expect("dt_s is range-checked");
+    /// assert_eq!((range.name, range.value), ("dt_s", 0.0));
+    /// assert!(!range.bounds.contains(0.0) && range.bounds.contains(0.01));
+    /// assert_eq!(plant.state(), &state);
+    /// // so is a bend past the joint's hard stops
+    /// let err = plant.step(Command { theta_c_deg: 200.0, ..hold }, 0.01).unwrap_err();
+    /// assert!(matches!(err, ModelError::OutOfWorkspace(r) if r.name == "theta_c_deg"));
+    /// # Ok::<(), ModelError>(())
+    /// ```
     pub fn step(&mut self, command: Command, dt_s: f64) -> Result<PlantState> {
         Bounds::open(0.0, 1e3).check("dt_s", dt_s)?;
         self.check_command(&command)?;

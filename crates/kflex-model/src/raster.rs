@@ -32,6 +32,10 @@ impl Rasterizer {
 
     /// Draws the silhouette of `shape` seen by `camera` into `mask` (which must have the
     /// camera's size); pixels already set stay set.
+    ///
+    /// # Errors
+    /// [`ModelError::ImageSize`] when `mask` is not the camera's
+    /// `width × height`; nothing is drawn then.
     pub fn silhouette(
         &mut self,
         camera: &Camera,

@@ -135,6 +135,24 @@ impl Trajectory {
     }
 
     /// Validates and prepares for sampling.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first field out of its range
+    /// (NaN is out of every range):
+    /// * `Sine`: `amplitude_deg` outside `[0, 360]`, `offset_deg` outside
+    ///   `[-360, 360]`, `frequency_hz` outside `(0, 1000)`; and
+    ///   [`ModelError::NonFinite`] for a NaN or infinite `phase_rad`;
+    /// * `PeriodicSet`: `legs.len()` for no legs, `cycles_per_leg` outside
+    ///   `[1, 1e6]`, a leg's `leg amplitude_deg` outside `[0, 360]` or
+    ///   `leg frequency_hz` outside `(0, 1000)`;
+    /// * `BandLimited`: `min_deg` outside `[-360, 360]`, `max_deg` outside
+    ///   `[min_deg, 360]`, `cutoff_hz` outside `(0, 1000)`, `components`
+    ///   outside `[1, 1024]`;
+    /// * `Steps`: `min_deg` and `max_deg` as for `BandLimited`, `hold_s`
+    ///   outside `(0, 1e6)`, `ramp_s` outside `[0, hold_s]`.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
+    /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     pub fn sampler(&self) -> Result<TrajectorySampler> {
         let kind = match self {
             Trajectory::Sine(s) => {
@@ -227,7 +245,8 @@ fn range(lo: f64, hi: f64) -> Result<(f64, f64)> {
 }
 
 impl TrajectorySampler {
-    /// θ_d and its rate at time `t` (s). Times before 0 give the value at 0 with zero rate.
+    /// θ_d and its rate at time `t` (s). Times before 0, and NaN or infinite
+    /// times, give the sample at 0 (value and rate).
     pub fn sample(&self, t: f64) -> Sample {
         let t = if t.is_finite() { t.max(0.0) } else { 0.0 };
         match &self.kind {

@@ -79,6 +79,18 @@ pub struct SheathParams {
 
 impl SheathParams {
     /// Checks every parameter against its physical range.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first field out of its range, in
+    /// declaration order: `friction_coefficient` outside `[0, 2]`,
+    /// `route_wrap_deg` outside `[0, 3600]` deg, `pretension_n` outside
+    /// `(0, 1e4)` N, `tendon_stiffness_n_per_mm` outside `(0, 1e6)` N/mm,
+    /// `coulomb_friction_n` outside `[0, 1e4]` N, `drive_backlash_mm` outside
+    /// `[0, 100]` mm, `sheath_coupling_mm_per_rad` outside `[-10, 10]` mm/rad,
+    /// `distal_stiffness_n_per_mm` outside `(0, 1e7)` N/mm (NaN is out of
+    /// every range).
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     pub fn validate(&self) -> Result<()> {
         Bounds::closed(0.0, 2.0).check("friction_coefficient", self.friction_coefficient)?;
         Bounds::closed(0.0, 3600.0).check("route_wrap_deg", self.route_wrap_deg)?;
@@ -143,7 +155,13 @@ pub struct Distal {
 }
 
 impl TendonSheath {
-    /// A transmission through a sheath bent by `sheath_deg` (any angle ≥ 0), at rest with zero stroke.
+    /// A transmission through a sheath bent by `sheath_deg` (`[0, 3600]` deg), at rest with zero stroke.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first parameter of `params` out of
+    /// its range ([`SheathParams::validate`]), or `sheath_deg`.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     pub fn new(params: SheathParams, sheath_deg: f64) -> Result<Self> {
         params.validate()?;
         let mut out = Self {
@@ -165,6 +183,12 @@ impl TendonSheath {
     /// Changes the sheath configuration (total bend, deg). The tendons stay where
     /// they are in the sheath (the node holds), so the distal force does not jump;
     /// the next tick slides them onto the new friction band if they lie outside it.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming `sheath_deg` when it is outside
+    /// `[0, 3600]` deg (NaN included); the transmission is then unchanged.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     pub fn set_sheath_deg(&mut self, sheath_deg: f64) -> Result<()> {
         Bounds::closed(0.0, 3600.0).check("sheath_deg", sheath_deg)?;
         let p = &self.params;
@@ -201,6 +225,12 @@ impl TendonSheath {
 
     /// Moves the motors' differential stroke to `q` (mm). The tendons in the
     /// sheath move when the joint's answer is known: [`TendonSheath::commit`].
+    ///
+    /// # Errors
+    /// [`ModelError::NonFinite`] for a NaN or infinite `q_mm` (named `play.x`,
+    /// the input of the drive's backlash); nothing moves then.
+    ///
+    /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     pub fn advance(&mut self, q_mm: f64) -> Result<()> {
         self.play.advance(q_mm)?;
         Ok(())
@@ -293,6 +323,12 @@ impl TendonSheath {
     }
 
     /// Records that the joint settled at distal stroke `p` (mm): the tendons move there.
+    ///
+    /// # Errors
+    /// [`ModelError::NonFinite`] naming `distal stroke` for a NaN or infinite
+    /// `p_mm`; nothing moves then.
+    ///
+    /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     pub fn commit(&mut self, p_mm: f64) -> Result<()> {
         finite("distal stroke", p_mm)?;
         self.node_mm = self.distal(p_mm).node_mm;

@@ -92,6 +92,10 @@ const MAX_ROI_PIXELS: u64 = 1 << 24;
 /// Segments the instrument in `roi` of an RGB frame (`width × height`, 8 bits,
 /// row-major). One-off: in a loop, keep a [`Segmenter`], which allocates nothing
 /// once it has seen a region of the size.
+///
+/// # Errors
+/// As [`Segmenter::new`] for out-of-range `params`, then as
+/// [`Segmenter::segment`].
 pub fn segment(
     rgb: &[u8],
     width: u32,
@@ -142,6 +146,15 @@ struct Scratch {
 
 impl Segmenter {
     /// A segmenter with these thresholds; out-of-range thresholds are an error.
+    ///
+    /// # Errors
+    /// [`EstimateError::OutOfRange`] naming the first parameter out of its
+    /// range, in this order (NaN is out of every range): `split_range` outside
+    /// `[0, 3]`, `merge_distance` outside `[0, 2]`, `max_saturation` outside
+    /// `[0, 1]`, `max_redness` outside `[-1, 1]`, `min_value`,
+    /// `min_component` or `min_instrument` outside `[0, 1]`, `out` outside
+    /// `[1, 4096]` px. `min_block` is not checked (blocks stop at 2 px
+    /// anyway).
     pub fn new(params: SegmentParams) -> Result<Self> {
         let check = |name, value: f32, lo, hi| Bounds::closed(lo, hi).check(name, f64::from(value));
         check("split_range", params.split_range, 0.0, 3.0)?;
@@ -169,6 +182,41 @@ impl Segmenter {
 
     /// Segments the instrument in `roi` of an RGB frame (`width × height`,
     /// 8 bits, row-major). The result lives until the next call.
+    ///
+    /// # Errors
+    /// * [`EstimateError::ImageSize`] when `width` or `height` is 0 or
+    ///   `rgb.len()` is not `width × height × 3`;
+    /// * [`EstimateError::Model`] wrapping [`ModelError::OutOfRange`] naming
+    ///   the axis of `roi` that is empty or reaches past the frame's edge
+    ///   (`roi.width`, `roi.height`, `roi.x0 + roi.width`,
+    ///   `roi.y0 + roi.height`, as [`Roi::check_within`]);
+    /// * [`EstimateError::OutOfRange`] naming `roi pixels` for a region of more
+    ///   than 2²⁴ pixels;
+    /// * [`EstimateError::NoInstrument`] when fewer than
+    ///   [`SegmentParams::min_instrument`] of the region's pixels (and at least
+    ///   one) are instrument.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use kflex_estimate::{SegmentParams, Segmenter};
+    /// use kflex_model::{Camera, FrameParams, Instrument, Roi, SceneRenderer};
+    /// let camera = Camera::default();
+    /// let shape = Instrument::kflex().shape(30.0, 10.0)?;
+    /// let frame = SceneRenderer::new().render(&camera, &shape, &FrameParams::default())?;
+    /// let roi = Roi::working(&camera)?;
+    /// // keep the segmenter: later frames of this region size allocate nothing
+    /// let mut segmenter = Segmenter::new(SegmentParams::default())?;
+    /// let seg = segmenter.segment(&frame.rgb, frame.width, frame.height, roi)?;
+    /// assert_eq!((seg.small.width(), seg.small.height()), (48, 48));
+    /// assert!(seg.small.count() > 0);
+    /// // at the region's resolution it matches the renderer's ground truth
+    /// let truth = frame.instrument.crop(roi)?;
+    /// assert!(seg.full.iou(&truth)? > 0.9);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// [`ModelError::OutOfRange`]: kflex_model::ModelError::OutOfRange
     pub fn segment(
         &mut self,
         rgb: &[u8],

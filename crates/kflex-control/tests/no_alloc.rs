@@ -1,15 +1,17 @@
-//! The segmentation stage of the loop allocates nothing once it has seen a
-//! region of the size (DESIGN: one tick, no allocation).
+//! The stages of the control loop allocate nothing per tick once set up
+//! (DESIGN: one tick, no allocation): the plant, whether it accepts or
+//! rejects a command, and the segmentation once it has seen a region of the
+//! size. Later stages (estimators, filter, compensator) join this file.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use kflex_estimate::{SegmentParams, Segmenter};
-use kflex_model::Camera;
-use kflex_model::Instrument;
-use kflex_model::Roi;
-use kflex_model::{Background, FrameParams, Occlusion, SceneRenderer};
+use kflex_model::{
+    Background, Camera, Command, FrameParams, Instrument, ModelError, Occlusion, Plant,
+    PlantConfig, Roi, SceneRenderer,
+};
 
 /// Counts the allocations this thread makes while `COUNTING` is set.
 struct Counting;
@@ -45,6 +47,51 @@ unsafe impl GlobalAlloc for Counting {
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
+
+/// Allocations made by `f` on this thread.
+fn allocations<T>(f: impl FnOnce() -> T) -> (T, usize) {
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    COUNTING.with(|c| c.set(true));
+    let out = f();
+    COUNTING.with(|c| c.set(false));
+    (out, ALLOCATIONS.load(Ordering::Relaxed) - before)
+}
+
+#[test]
+fn plant_steps_allocate_nothing_accepted_or_rejected() {
+    let mut plant = Plant::new(PlantConfig {
+        sheath_deg: 180.0,
+        ..PlantConfig::default()
+    })
+    .unwrap();
+    let command = |theta_c_deg, translation_mm| Command {
+        theta_c_deg,
+        translation_mm,
+    };
+    for k in 0..200 {
+        let theta = 25.0 * (f64::from(k) * 0.05).sin() + 25.0;
+        let (state, n) = allocations(|| plant.step(command(theta, 10.0), 0.01));
+        assert!(state.unwrap().theta_a_deg.is_finite());
+        assert_eq!(n, 0, "accepted step {k} allocated");
+    }
+    let before = *plant.state();
+    for (bad, dt) in [
+        (command(f64::NAN, 10.0), 0.01),
+        (command(300.0, 10.0), 0.01),
+        (command(20.0, -5.0), 0.01),
+        (command(20.0, 10.0), -1.0),
+    ] {
+        let (result, n) = allocations(|| plant.step(bad, dt));
+        assert!(matches!(
+            result,
+            Err(ModelError::NonFinite { .. }
+                | ModelError::OutOfWorkspace(_)
+                | ModelError::OutOfRange(_))
+        ));
+        assert_eq!(n, 0, "rejected step {bad:?} dt {dt} allocated");
+        assert_eq!(*plant.state(), before);
+    }
+}
 
 #[test]
 fn a_frame_after_the_first_allocates_nothing() {
@@ -82,12 +129,12 @@ fn a_frame_after_the_first_allocates_nothing() {
         .count();
     assert!(reference > 20);
     for f in &others {
-        COUNTING.with(|c| c.set(true));
-        let pixels = segmenter
-            .segment(&f.rgb, f.width, f.height, roi)
-            .map(|s| s.small.count());
-        COUNTING.with(|c| c.set(false));
+        let (pixels, n) = allocations(|| {
+            segmenter
+                .segment(&f.rgb, f.width, f.height, roi)
+                .map(|s| s.small.count())
+        });
         assert!(pixels.unwrap() > 20);
-        assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations");
+        assert_eq!(n, 0, "allocations");
     }
 }
