@@ -11,12 +11,12 @@ STAMP := $(VENV)/.installed
 CARGO ?= cargo
 RUN_ARGS ?=
 
-.PHONY: run test venv build test-rust test-python lint fmt bench fit clean
+.PHONY: run test venv build test-rust test-embedded test-python lint fmt bench fit clean
 
 run: venv build
 	./target/release/kflex-cli run $(RUN_ARGS)
 
-test: venv test-rust test-python
+test: venv test-rust test-embedded test-python
 
 venv: $(STAMP)
 
@@ -34,12 +34,19 @@ build:
 test-rust:
 	$(CARGO) test --workspace --locked
 
+# The crates a controller embeds, as it builds them: without default features
+# (no rapier3d, parry3d or image; see ARCHITECTURE.md).
+EMBEDDED := -p kflex-model -p kflex-estimate -p kflex-control
+test-embedded:
+	$(CARGO) test --locked $(EMBEDDED) --no-default-features
+
 test-python: venv
 	$(VPY) -m pytest -q tests/python
 
 lint:
 	$(CARGO) fmt --all --check
 	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
+	$(CARGO) clippy $(EMBEDDED) --all-targets --locked --no-default-features -- -D warnings
 
 fmt:
 	$(CARGO) fmt --all

@@ -67,6 +67,7 @@ impl Intrinsics {
     }
 
     /// The paper's camera: 1920×1080, same field of view as the default.
+    #[must_use]
     pub fn full_hd() -> Self {
         Self::from_fov(1920, 1080, 100.0).unwrap_or(Self {
             width: 1920,
@@ -163,6 +164,7 @@ impl Default for Camera {
 
 impl Camera {
     /// Projects a point given in the overtube frame; `None` if it is not in front of the camera.
+    #[must_use]
     pub fn project(&self, p_overtube: [f64; 3]) -> Option<[f64; 2]> {
         let p = self.camera_from_overtube * Point3::from(p_overtube);
         (p.z > 1e-9).then(|| {
@@ -172,12 +174,14 @@ impl Camera {
     }
 
     /// The ray through pixel position `(u, v)` in the camera frame (unnormalised direction).
+    #[must_use]
     pub fn ray_direction(&self, u: f64, v: f64) -> [f64; 3] {
         let k = &self.intrinsics;
         [(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0]
     }
 
     /// The same camera with other intrinsics (e.g. a region of interest).
+    #[must_use]
     pub fn with_intrinsics(&self, intrinsics: Intrinsics) -> Self {
         Self {
             intrinsics,

@@ -36,6 +36,7 @@ pub struct BoucWenParams {
 impl BoucWenParams {
     /// A normalised element whose `z` saturates at ±1 after about `3 δ` of travel:
     /// `A = 1/δ`, `β = γ = 1/(2δ)`, `n = 1`, `α = 0`. `δ` is the pre-sliding length.
+    #[must_use]
     pub fn normalised(presliding: f64) -> Self {
         Self {
             a: 1.0 / presliding,
@@ -67,6 +68,7 @@ impl BoucWenParams {
     }
 
     /// The bound `(A / (β + γ))^(1/n)` on `|z|`.
+    #[must_use]
     pub fn z_bound(&self) -> f64 {
         (self.a / (self.beta + self.gamma)).powf(1.0 / self.n)
     }
@@ -114,21 +116,25 @@ impl BoucWen {
     }
 
     /// Parameters.
+    #[must_use]
     pub fn params(&self) -> &BoucWenParams {
         &self.params
     }
 
     /// Current hysteretic state `z`.
+    #[must_use]
     pub fn z(&self) -> f64 {
         self.z
     }
 
     /// Last input.
+    #[must_use]
     pub fn x(&self) -> f64 {
         self.x
     }
 
     /// Output `α x + (1 − α) z`.
+    #[must_use]
     pub fn output(&self) -> f64 {
         self.params.alpha * self.x + (1.0 - self.params.alpha) * self.z
     }
@@ -260,11 +266,13 @@ impl Play {
     }
 
     /// Half-width `r`.
+    #[must_use]
     pub fn half_width(&self) -> f64 {
         self.half_width
     }
 
     /// Current output.
+    #[must_use]
     pub fn output(&self) -> f64 {
         self.y
     }

@@ -140,6 +140,7 @@ impl Instrument {
     }
 
     /// The default K-FLEX-scale instrument (the plant's defaults).
+    #[must_use]
     pub fn kflex() -> Self {
         Self {
             joint: JointParams::default(),

@@ -83,6 +83,7 @@ impl TendonGeometry {
     }
 
     /// Eq. 1: change of the length of tendon `a`'s path through the joint, mm, at bend `theta` (rad).
+    #[must_use]
     pub fn delta_l_a_mm(&self, theta_rad: f64) -> f64 {
         let phi = theta_rad / self.two_n();
         self.two_n()
@@ -93,11 +94,13 @@ impl TendonGeometry {
     }
 
     /// Eq. 2: `ΔL_b(θ) = ΔL_a(−θ)`, mm.
+    #[must_use]
     pub fn delta_l_b_mm(&self, theta_rad: f64) -> f64 {
         self.delta_l_a_mm(-theta_rad)
     }
 
     /// `dΔL_a/dθ`, mm/rad.
+    #[must_use]
     pub fn delta_l_a_slope_mm_per_rad(&self, theta_rad: f64) -> f64 {
         let phi = theta_rad / self.two_n();
         (self.r_mm - self.b_mm) * phi.sin() - self.tendon_offset_mm * phi.cos()
@@ -105,17 +108,20 @@ impl TendonGeometry {
 
     /// Differential stroke `s(θ) = (ΔL_b − ΔL_a)/2 = 2n d_t sin(θ/2n)`, mm: how far
     /// tendon `a` is pulled in, and `b` paid out, relative to their mean.
+    #[must_use]
     pub fn differential_stroke_mm(&self, theta_rad: f64) -> f64 {
         self.two_n() * self.tendon_offset_mm * (theta_rad / self.two_n()).sin()
     }
 
     /// `ds/dθ = d_t cos(θ/2n)`, mm/rad: the moment arm of the differential tendon force.
+    #[must_use]
     pub fn stroke_slope_mm_per_rad(&self, theta_rad: f64) -> f64 {
         self.tendon_offset_mm * (theta_rad / self.two_n()).cos()
     }
 
     /// Common-mode change `(ΔL_a + ΔL_b)/2 = 2n (R−B)(1 − cos(θ/2n))`, mm: both
     /// tendon paths lengthen as the joint bends (the motors pay tendon out).
+    #[must_use]
     pub fn common_mode_mm(&self, theta_rad: f64) -> f64 {
         self.two_n() * (self.r_mm - self.b_mm) * (1.0 - (theta_rad / self.two_n()).cos())
     }
@@ -159,6 +165,7 @@ impl TendonGeometry {
     }
 
     /// Inverse of the differential stroke: θ (rad) from `s` (mm), closed form.
+    #[must_use]
     pub fn theta_rad_from_stroke(&self, stroke_mm: f64) -> Option<f64> {
         let x = stroke_mm / (self.two_n() * self.tendon_offset_mm);
         (x.abs() <= 1.0).then(|| self.two_n() * x.asin())

@@ -65,26 +65,31 @@ impl Mask {
     }
 
     /// Width, px.
+    #[must_use]
     pub fn width(&self) -> u32 {
         self.width
     }
 
     /// Height, px.
+    #[must_use]
     pub fn height(&self) -> u32 {
         self.height
     }
 
     /// Pixels, row-major, 0 or 1.
+    #[must_use]
     pub fn data(&self) -> &[u8] {
         &self.data
     }
 
     /// Whether pixel `(x, y)` is set (false outside the image).
+    #[must_use]
     pub fn get(&self, x: u32, y: u32) -> bool {
         x < self.width && y < self.height && self.data[(y * self.width + x) as usize] != 0
     }
 
     /// Number of set pixels.
+    #[must_use]
     pub fn count(&self) -> usize {
         self.data.iter().filter(|&&v| v != 0).count()
     }

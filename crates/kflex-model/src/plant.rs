@@ -230,16 +230,19 @@ impl Plant {
     }
 
     /// The configuration.
+    #[must_use]
     pub fn config(&self) -> &PlantConfig {
         &self.config
     }
 
     /// The last state.
+    #[must_use]
     pub fn state(&self) -> &PlantState {
         &self.state
     }
 
     /// Internal rapier steps taken so far (0 for the analytic joint).
+    #[must_use]
     pub fn physics_steps(&self) -> u64 {
         match &self.joint {
             JointSolver::Analytic => 0,

@@ -26,6 +26,7 @@ pub struct Rasterizer {
 
 impl Rasterizer {
     /// A rasterizer with empty buffers.
+    #[must_use]
     pub fn new() -> Self {
         Self::default()
     }

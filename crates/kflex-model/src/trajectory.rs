@@ -42,6 +42,7 @@ impl Sine {
     };
 
     /// Period, s.
+    #[must_use]
     pub fn period_s(&self) -> f64 {
         1.0 / self.frequency_hz
     }
@@ -130,6 +131,7 @@ const STEP_LEVELS: usize = 4096;
 
 impl Trajectory {
     /// The paper's test input.
+    #[must_use]
     pub fn paper() -> Self {
         Trajectory::Sine(Sine::PAPER)
     }
@@ -247,6 +249,7 @@ fn range(lo: f64, hi: f64) -> Result<(f64, f64)> {
 impl TrajectorySampler {
     /// θ_d and its rate at time `t` (s). Times before 0, and NaN or infinite
     /// times, give the sample at 0 (value and rate).
+    #[must_use]
     pub fn sample(&self, t: f64) -> Sample {
         let t = if t.is_finite() { t.max(0.0) } else { 0.0 };
         match &self.kind {
@@ -303,6 +306,7 @@ impl TrajectorySampler {
 
     /// Length of a natural experiment on this trajectory, s, where it has one
     /// (the periodic set's total length); `None` for unbounded trajectories.
+    #[must_use]
     pub fn natural_duration_s(&self) -> Option<f64> {
         match &self.kind {
             SamplerKind::PeriodicSet { legs, cycles } => {

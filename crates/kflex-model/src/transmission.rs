@@ -202,16 +202,19 @@ impl TendonSheath {
     }
 
     /// Sheath bend, deg.
+    #[must_use]
     pub fn sheath_deg(&self) -> f64 {
         self.sheath_deg
     }
 
     /// Parameters.
+    #[must_use]
     pub fn params(&self) -> &SheathParams {
         &self.params
     }
 
     /// Friction `H` of the pair at this bend, N.
+    #[must_use]
     pub fn friction_n(&self) -> f64 {
         self.friction_n
     }
@@ -238,11 +241,13 @@ impl TendonSheath {
 
     /// Mobilised friction as a fraction of `H` at the committed state, in `[−1, 1]`
     /// (+1: sliding as when tendon `a` is pulled in; 0 with no friction).
+    #[must_use]
     pub fn friction_state(&self) -> f64 {
         self.mobilised(self.node_mm, self.p_committed)
     }
 
     /// Stroke after the drive's backlash, mm.
+    #[must_use]
     pub fn stroke_after_backlash_mm(&self) -> f64 {
         self.play.output()
     }
@@ -287,6 +292,7 @@ impl TendonSheath {
     }
 
     /// The tendons at the joint if its distal stroke were `p` (mm), without committing it.
+    #[must_use]
     pub fn distal(&self, p_mm: f64) -> Distal {
         let kd = self.params.distal_stiffness_n_per_mm;
         let h = self.friction_n;
@@ -318,6 +324,7 @@ impl TendonSheath {
     }
 
     /// Differential distal force `F = T_a − T_b` (N) if the joint's distal stroke were `p` (mm).
+    #[must_use]
     pub fn distal_force_n(&self, p_mm: f64) -> f64 {
         self.distal(p_mm).force_n
     }
@@ -337,6 +344,7 @@ impl TendonSheath {
     }
 
     /// Stiffness of the taut pair, N/mm: an upper bound of `−dF/dp`.
+    #[must_use]
     pub fn taut_stiffness_n_per_mm(&self) -> f64 {
         self.params
             .distal_stiffness_n_per_mm
@@ -348,6 +356,7 @@ impl TendonSheath {
     /// `T_a (cosh μΦ + z sinh μΦ)` and `T_b (cosh μΦ − z sinh μΦ)`, which is the
     /// capstan law `e^{±μΦ}` when sliding (`z = ±1`) and, in between, keeps
     /// `T_a,p − T_b,p = F cosh μΦ + 2T₀ z sinh μΦ` consistent with the force balance.
+    #[must_use]
     pub fn tensions(&self, force_n: f64) -> TendonTensions {
         let t0 = self.params.pretension_n;
         let a = (t0 + 0.5 * force_n).max(force_n).max(0.0);

@@ -50,6 +50,7 @@ fn drive(config: PlantConfig, seconds: f64, dt: f64) -> Vec<f64> {
         .collect()
 }
 
+#[cfg(feature = "multibody")]
 #[test]
 fn rapier_and_analytic_joints_agree_without_load() {
     let joint = JointParams {
@@ -86,6 +87,7 @@ fn rapier_and_analytic_joints_agree_without_load() {
     }
 }
 
+#[cfg(feature = "multibody")]
 #[test]
 fn rapier_gravity_and_tip_load_bend_the_joint_as_the_analytic_model_does() {
     // a heavy tool and a push on the tip: both models move the same way, by a similar amount
@@ -118,6 +120,25 @@ fn rapier_gravity_and_tip_load_bend_the_joint_as_the_analytic_model_does() {
     let a = settle(unloaded, JointModelKind::Analytic) - settle(joint, JointModelKind::Analytic);
     let r = settle(unloaded, JointModelKind::Rapier) - settle(joint, JointModelKind::Rapier);
     assert!((a - r).abs() < 0.25 * a, "analytic drop {a} vs rapier {r}");
+}
+
+/// Built without the rapier joint, a configuration that asks for it is refused by name.
+#[cfg(not(feature = "multibody"))]
+#[test]
+fn the_rapier_joint_needs_the_multibody_feature() {
+    let err = Plant::new(PlantConfig {
+        joint_model: JointModelKind::Rapier,
+        ..PlantConfig::default()
+    })
+    .unwrap_err();
+    assert_eq!(
+        err,
+        ModelError::FeatureDisabled {
+            what: "joint_model = rapier",
+            feature: "multibody",
+        }
+    );
+    assert!(err.to_string().contains("\"multibody\""), "{err}");
 }
 
 #[test]

@@ -176,6 +176,7 @@ impl Segmenter {
     }
 
     /// The thresholds in use.
+    #[must_use]
     pub fn params(&self) -> &SegmentParams {
         &self.params
     }

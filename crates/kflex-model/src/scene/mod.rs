@@ -73,6 +73,11 @@ impl Default for FrameParams {
 
 impl FrameParams {
     /// Checks the parameters.
+    ///
+    /// # Errors
+    /// [`crate::ModelError::OutOfRange`] naming the first out of its range:
+    /// `illumination_gain` in [0.05, 5], `noise_std` in [0, 1], `blur_px` in
+    /// [0, 20], `occlusion.fraction` and `occlusion.position` in [0, 1].
     pub fn validate(&self) -> Result<()> {
         Bounds::closed(0.05, 5.0).check("illumination_gain", self.illumination_gain)?;
         Bounds::closed(0.0, 1.0).check("noise_std", self.noise_std)?;
