@@ -75,7 +75,7 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     let frame = SceneRenderer::new().render(&camera, &shape, &params)?;
     // the working region: where the joint and gripper can be over the paper's poses
     let roi = Roi::working(&camera)?;
-    let roi_camera = camera.with_intrinsics(intrinsics.for_roi(&roi, 48, 48)?);
+    let roi_camera = camera.with_intrinsics(roi.intrinsics(&intrinsics, 48, 48)?);
     let mut silhouette = Mask::new(48, 48)?;
     Rasterizer::new().silhouette(&roi_camera, &shape, &mut silhouette)?;
 

@@ -9,7 +9,6 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
 use crate::range::Bounds;
-use crate::roi::Roi;
 
 /// Intrinsics of a pinhole camera, pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -90,27 +89,12 @@ impl Intrinsics {
     /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     pub fn validate(&self) -> Result<()> {
-        crate::mask::check_image_size(self.width, self.height)?;
+        crate::range::check_image_size(self.width, self.height)?;
         Bounds::open(0.0, 1e6).check("fx", self.fx)?;
         Bounds::open(0.0, 1e6).check("fy", self.fy)?;
         crate::error::finite("cx", self.cx)?;
         crate::error::finite("cy", self.cy)?;
         Ok(())
-    }
-
-    /// [`Intrinsics::region`] of a pixel-aligned [`Roi`].
-    ///
-    /// # Errors
-    /// As [`Intrinsics::region`].
-    pub fn for_roi(&self, roi: &Roi, out_w: u32, out_h: u32) -> Result<Self> {
-        self.region(
-            f64::from(roi.x0),
-            f64::from(roi.y0),
-            f64::from(roi.width),
-            f64::from(roi.height),
-            out_w,
-            out_h,
-        )
     }
 
     /// The camera that sees the region `[x0, x0+w) × [y0, y0+h)` of this one's image

@@ -5,17 +5,6 @@ use crate::error::{ModelError, Result};
 use crate::range::{Bounds, RangeError};
 use crate::roi::Roi;
 
-/// Largest image side, px: above any endoscope's sensor (a 4K one is 3840 px wide).
-pub const MAX_IMAGE_SIDE: u32 = 16384;
-
-/// Checks an image size: each side in `[1, MAX_IMAGE_SIDE]` px.
-pub(crate) fn check_image_size(width: u32, height: u32) -> Result<()> {
-    let side = Bounds::closed(1.0, f64::from(MAX_IMAGE_SIDE));
-    side.check("image width", f64::from(width))?;
-    side.check("image height", f64::from(height))?;
-    Ok(())
-}
-
 /// A binary image: one byte per pixel, 0 or 1, row-major.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Mask {
@@ -31,7 +20,7 @@ impl Mask {
     /// [`ModelError::OutOfRange`] naming `image width` or `image height` when
     /// it is outside `[1, MAX_IMAGE_SIDE]`.
     pub fn new(width: u32, height: u32) -> Result<Self> {
-        check_image_size(width, height)?;
+        crate::range::check_image_size(width, height)?;
         Ok(Self {
             width,
             height,
@@ -46,7 +35,7 @@ impl Mask {
     /// it is outside `[1, MAX_IMAGE_SIDE]`;
     /// [`ModelError::ImageSize`] when `data.len()` is not `width × height`.
     pub fn from_raw(width: u32, height: u32, data: Vec<u8>) -> Result<Self> {
-        check_image_size(width, height)?;
+        crate::range::check_image_size(width, height)?;
         let expected = width as usize * height as usize;
         if data.len() != expected {
             return Err(ModelError::ImageSize {
@@ -158,7 +147,7 @@ impl Mask {
     /// [`ModelError::OutOfRange`] naming `image width` or `image height` when
     /// it is outside `[1, MAX_IMAGE_SIDE]`; the mask is then left unchanged.
     pub fn reshape(&mut self, width: u32, height: u32) -> Result<()> {
-        check_image_size(width, height)?;
+        crate::range::check_image_size(width, height)?;
         self.width = width;
         self.height = height;
         self.data.clear();

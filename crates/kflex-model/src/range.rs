@@ -153,6 +153,17 @@ impl fmt::Display for Num {
     }
 }
 
+/// Largest image side, px: above any endoscope's sensor (a 4K one is 3840 px wide).
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
+/// Checks an image size: each side in `[1, MAX_IMAGE_SIDE]` px.
+pub(crate) fn check_image_size(width: u32, height: u32) -> Result<(), RangeError> {
+    let side = Bounds::closed(1.0, f64::from(MAX_IMAGE_SIDE));
+    side.check("image width", f64::from(width))?;
+    side.check("image height", f64::from(height))?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

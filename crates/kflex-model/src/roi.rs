@@ -1,18 +1,13 @@
 //! [`Roi`]: the region of interest of a frame, shared by the camera simulator
 //! (which renders silhouettes of it) and the segmentation (which reads it).
-//!
-//! The working region is derived, not typed in: [`Roi::for_workspace`]
-//! projects the bending joint and the gripper over every pose of a
-//! [`PoseRange`] and takes the smallest square around them.
+//! The working region is derived from the camera and the instrument, not
+//! typed in: see [`Roi::working`] (in `working.rs`).
 
 use serde::{Deserialize, Serialize};
 
-use crate::camera::Camera;
-use crate::error::{ModelError, Result};
-use crate::instrument::{Instrument, InstrumentShape, Part};
+use crate::camera::Intrinsics;
+use crate::error::Result;
 use crate::range::Bounds;
-use crate::raster;
-use crate::workspace::PoseRange;
 
 /// A region of interest in pixels: `[x0, x0 + width) × [y0, y0 + height)`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -28,24 +23,6 @@ pub struct Roi {
 }
 
 impl Roi {
-    /// Margin of [`Roi::working`] around the joint and gripper, px of the full frame.
-    pub const WORKING_MARGIN_PX: u32 = 8;
-
-    /// The default working region of `camera`: [`Roi::for_workspace`] of the
-    /// K-FLEX instrument ([`Instrument::kflex`]) over the paper's poses
-    /// ([`PoseRange::PAPER`]), with [`Roi::WORKING_MARGIN_PX`].
-    ///
-    /// # Errors
-    /// As [`Roi::for_workspace`].
-    pub fn working(camera: &Camera) -> Result<Roi> {
-        Self::for_workspace(
-            camera,
-            &Instrument::kflex(),
-            &PoseRange::PAPER,
-            Self::WORKING_MARGIN_PX,
-        )
-    }
-
     /// Checks that the region is not empty and lies inside a `width × height` image.
     ///
     /// # Errors
@@ -68,204 +45,31 @@ impl Roi {
         u64::from(self.width) * u64::from(self.height)
     }
 
-    /// The smallest square region of `camera`'s image that contains the
-    /// bending joint and the gripper for every pose in `poses`, plus
-    /// `margin_px` on each side, clipped to the image.
-    ///
-    /// The poses are sampled every 1° of bend and every 1 mm of translation
-    /// (ends included). Each capsule's image is bounded exactly: a capsule is
-    /// the convex hull of its two end spheres, a pinhole maps it to the convex
-    /// hull of their images, and a sphere's extent along `u` (or `v`) is
-    /// where the planes through the centre of projection touch it. Between
-    /// samples a pose moves the tip by well under a pixel at the default
-    /// camera, which the margin absorbs.
-    ///
-    /// # Examples
-    /// ```
-    /// use kflex_model::{Camera, Instrument, PoseRange, Roi};
-    /// let camera = Camera::default();
-    /// let roi = Roi::for_workspace(&camera, &Instrument::kflex(), &PoseRange::PAPER, 4)?;
-    /// assert_eq!(roi.width, roi.height);
-    /// roi.check_within(camera.intrinsics.width, camera.intrinsics.height)?;
-    /// # Ok::<(), kflex_model::ModelError>(())
-    /// ```
+    /// The intrinsics of the camera that sees this region of an image taken
+    /// with `full`, resampled to `out_w × out_h` ([`Intrinsics::region`] of
+    /// a pixel-aligned region; e.g. IBJAE's 48×48).
     ///
     /// # Errors
-    /// [`ModelError::OutOfWorkspace`] when a pose lies outside the
-    /// instrument's workspace; [`ModelError::OutOfRange`] for a reversed or
-    /// non-finite range; [`ModelError::NotInView`] when the distal part never
-    /// comes into the image.
-    pub fn for_workspace(
-        camera: &Camera,
-        instrument: &Instrument,
-        poses: &PoseRange,
-        margin_px: u32,
-    ) -> Result<Roi> {
-        let [t0, t1] = poses.theta_deg;
-        let [d0, d1] = poses.translation_mm;
-        Bounds::closed(t0, f64::INFINITY).check("poses.theta_deg[1]", t1)?;
-        Bounds::closed(d0, f64::INFINITY).check("poses.translation_mm[1]", d1)?;
-        let nt = ((t1 - t0).ceil() as usize).max(1);
-        let nd = ((d1 - d0).ceil() as usize).max(1);
-        let mut shape = InstrumentShape::default();
-        let mut bbox = [
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ];
-        for i in 0..=nt {
-            let theta = t0 + (t1 - t0) * i as f64 / nt as f64;
-            for j in 0..=nd {
-                let d = d0 + (d1 - d0) * j as f64 / nd as f64;
-                instrument.shape_into(theta, d, &mut shape)?;
-                for c in shape.capsules.iter().filter(|c| c.part != Part::Shaft) {
-                    for end in [c.a_mm, c.b_mm] {
-                        if let Some([u0, v0, u1, v1]) = sphere_extent(camera, end, c.radius_mm) {
-                            bbox = [
-                                bbox[0].min(u0),
-                                bbox[1].min(v0),
-                                bbox[2].max(u1),
-                                bbox[3].max(v1),
-                            ];
-                        }
-                    }
-                }
-            }
-        }
-        let k = &camera.intrinsics;
-        let (w, h) = (f64::from(k.width), f64::from(k.height));
-        let m = f64::from(margin_px);
-        let [u0, v0, u1, v1] = [
-            (bbox[0] - m).max(0.0),
-            (bbox[1] - m).max(0.0),
-            (bbox[2] + m).min(w),
-            (bbox[3] + m).min(h),
-        ];
-        if !(u1 > u0 && v1 > v0) {
-            return Err(ModelError::NotInView {
-                what: "the bending joint and gripper over this pose range",
-            });
-        }
-        // square it, centred on the box, shifted (not cut) to stay inside the image
-        let side = (u1 - u0).max(v1 - v0).ceil().min(w.min(h));
-        let place = |lo: f64, hi: f64, limit: f64| {
-            (0.5 * (lo + hi - side)).clamp(0.0, limit - side).floor()
-        };
-        let (x0, y0) = (place(u0, u1, w), place(v0, v1, h));
-        let roi = Roi {
-            x0: x0 as u32,
-            y0: y0 as u32,
-            width: side as u32,
-            height: side as u32,
-        };
-        roi.check_within(k.width, k.height)?;
-        Ok(roi)
+    /// As [`Intrinsics::region`].
+    pub fn intrinsics(&self, full: &Intrinsics, out_w: u32, out_h: u32) -> Result<Intrinsics> {
+        full.region(
+            f64::from(self.x0),
+            f64::from(self.y0),
+            f64::from(self.width),
+            f64::from(self.height),
+            out_w,
+            out_h,
+        )
     }
-}
-
-/// Pixel box of a sphere (centre in the overtube frame, mm) seen by
-/// `camera`; `None` if any of it reaches the camera's plane.
-fn sphere_extent(camera: &Camera, centre_mm: [f64; 3], radius_mm: f64) -> Option<[f64; 4]> {
-    let c = (camera.camera_from_overtube * nalgebra::Point3::from(centre_mm)).coords;
-    raster::sphere_extent(&camera.intrinsics, c, radius_mm)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mask::Mask;
-    use crate::raster::Rasterizer;
+    use crate::error::ModelError;
 
     #[test]
-    fn sphere_extent_bounds_its_rasterised_image() {
-        let camera = Camera::default();
-        // centred, off-axis, and cut by the image's left edge
-        for centre in [[0.0, 5.0, 20.0], [12.0, -6.0, 15.0], [-14.0, 9.0, 12.0]] {
-            let [u0, v0, u1, v1] = sphere_extent(&camera, centre, 1.5).unwrap();
-            let shape = InstrumentShape {
-                capsules: vec![crate::instrument::Capsule {
-                    a_mm: centre,
-                    b_mm: centre,
-                    radius_mm: 1.5,
-                    cap_a: true,
-                    part: Part::Jaw(0),
-                }],
-                tip_mm: centre,
-            };
-            let mut mask = Mask::new(640, 480).unwrap();
-            Rasterizer::new()
-                .silhouette(&camera, &shape, &mut mask)
-                .unwrap();
-            assert!(mask.count() > 10);
-            for y in 0..480 {
-                for x in 0..640 {
-                    if mask.get(x, y) {
-                        let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
-                        assert!(
-                            u >= u0 && u <= u1 && v >= v0 && v <= v1,
-                            "{centre:?} ({x}, {y})"
-                        );
-                    }
-                }
-            }
-            // and it is tight: no more than a pixel past the drawn pixels, where they are not cut
-            let xs: Vec<u32> = (0..640)
-                .filter(|&x| (0..480).any(|y| mask.get(x, y)))
-                .collect();
-            let right = f64::from(*xs.last().unwrap() + 1);
-            assert!(
-                u1 - right < 1.5 && (xs[0] == 0 || f64::from(xs[0]) - u0 < 1.5),
-                "{centre:?}"
-            );
-        }
-    }
-
-    #[test]
-    fn working_region_contains_every_distal_silhouette_of_the_range() {
-        let camera = Camera::default();
-        let instrument = Instrument::kflex();
-        let roi = Roi::for_workspace(&camera, &instrument, &PoseRange::PAPER, 2).unwrap();
-        let mut raster = Rasterizer::new();
-        let mut mask = Mask::new(640, 480).unwrap();
-        for theta in [0.0, 0.5, 17.3, 33.0, 49.5, 50.0] {
-            let mut shape = instrument.shape(theta, 10.0).unwrap();
-            shape.capsules.retain(|c| c.part != Part::Shaft);
-            mask.clear();
-            raster.silhouette(&camera, &shape, &mut mask).unwrap();
-            let inside = mask.crop(roi).unwrap().count();
-            assert_eq!(
-                inside,
-                mask.count(),
-                "θ = {theta}: distal pixels outside {roi:?}"
-            );
-        }
-    }
-
-    #[test]
-    fn bad_ranges_and_regions_name_what_failed() {
-        let camera = Camera::default();
-        let reversed = PoseRange {
-            theta_deg: [50.0, 0.0],
-            ..PoseRange::PAPER
-        };
-        match Roi::for_workspace(&camera, &Instrument::kflex(), &reversed, 0) {
-            Err(ModelError::OutOfRange(e)) => {
-                assert_eq!(
-                    (e.name, e.value, e.bounds.min),
-                    ("poses.theta_deg[1]", 0.0, 50.0)
-                );
-            }
-            other => panic!("{other:?}"),
-        }
-        let past = PoseRange {
-            theta_deg: [0.0, 200.0],
-            ..PoseRange::PAPER
-        };
-        assert!(matches!(
-            Roi::for_workspace(&camera, &Instrument::kflex(), &past, 0),
-            Err(ModelError::OutOfWorkspace(e)) if e.name == "theta_deg" && e.value > 120.0
-        ));
+    fn regions_outside_the_image_name_the_axis() {
         let roi = Roi {
             x0: 600,
             y0: 10,

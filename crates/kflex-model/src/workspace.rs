@@ -64,21 +64,3 @@ pub(crate) fn check_pose(
         .map_err(ModelError::OutOfWorkspace)?;
     Ok(())
 }
-
-/// The poses a working region must cover (see [`crate::Roi::for_workspace`]).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct PoseRange {
-    /// Bend θ from `[0]` to `[1]`, deg.
-    pub theta_deg: [f64; 2],
-    /// Translation d from `[0]` to `[1]`, mm.
-    pub translation_mm: [f64; 2],
-}
-
-impl PoseRange {
-    /// The paper's operating range: θ ∈ [0°, 50°] (its database and test
-    /// input), at the 10 mm translation of its experiments.
-    pub const PAPER: PoseRange = PoseRange {
-        theta_deg: [0.0, 50.0],
-        translation_mm: [10.0, 10.0],
-    };
-}
