@@ -68,41 +68,48 @@ mod tests {
     use super::*;
     use crate::error::ModelError;
 
+    /// The range error of `roi` checked in a 640×480 image.
+    fn failure(x0: u32, y0: u32, width: u32, height: u32) -> crate::range::RangeError {
+        match (Roi {
+            x0,
+            y0,
+            width,
+            height,
+        })
+        .check_within(640, 480)
+        {
+            Err(ModelError::OutOfRange(e)) => e,
+            other => panic!("{other:?}"),
+        }
+    }
+
     #[test]
     fn regions_outside_the_image_name_the_axis() {
-        let roi = Roi {
-            x0: 600,
-            y0: 10,
-            width: 50,
-            height: 50,
-        };
-        match roi.check_within(640, 480) {
-            Err(ModelError::OutOfRange(e)) => {
-                assert_eq!(
-                    (e.name, e.value, e.bounds.max),
-                    ("roi.x0 + roi.width", 650.0, 640.0)
-                );
-            }
-            other => panic!("{other:?}"),
-        }
-        let roi = Roi {
-            x0: 0,
-            y0: 470,
-            width: 50,
-            height: 50,
-        };
-        match roi.check_within(640, 480) {
-            Err(ModelError::OutOfRange(e)) => assert_eq!(e.name, "roi.y0 + roi.height"),
-            other => panic!("{other:?}"),
-        }
-        let empty = Roi {
-            x0: 0,
-            y0: 0,
-            width: 0,
-            height: 5,
-        };
+        let e = failure(600, 10, 50, 50);
+        assert_eq!(
+            (e.name, e.value, e.bounds.max),
+            ("roi.x0 + roi.width", 650.0, 640.0)
+        );
+        let e = failure(0, 470, 50, 50);
+        assert_eq!(
+            (e.name, e.value, e.bounds.max),
+            ("roi.y0 + roi.height", 520.0, 480.0)
+        );
+        assert_eq!(failure(0, 0, 0, 5).name, "roi.width");
+        assert_eq!(failure(0, 0, 5, 0).name, "roi.height");
+        // no overflow past u32::MAX: the sum is taken in u64
+        let e = failure(u32::MAX, 0, 2, 2);
+        assert_eq!(e.name, "roi.x0 + roi.width");
+        assert!(e.value > f64::from(u32::MAX));
         assert!(
-            matches!(empty.check_within(640, 480), Err(ModelError::OutOfRange(e)) if e.name == "roi.width")
+            Roi {
+                x0: 0,
+                y0: 0,
+                width: 640,
+                height: 480
+            }
+            .check_within(640, 480)
+            .is_ok()
         );
     }
 }

@@ -34,7 +34,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{EstimateError, Result};
 use pyramid::{Level, Region2d, pyramid};
-use regions::{Region, drop_small_components, merge, split};
+use regions::{Region, drop_small_components, merge, split, threshold};
 use resample::resample_cells;
 
 /// Segmentation thresholds. Colours on the [0, 1] scale.
@@ -252,27 +252,7 @@ impl Segmenter {
         let depth = pyramid(&region, s);
         split(s, depth, rw, rh, p);
         merge(s, cols, rows, p.merge_distance);
-        // threshold each merged region by its mean colour
-        let Scratch {
-            regions,
-            parent,
-            instrument,
-            labels,
-            cells,
-            ..
-        } = s;
-        instrument.clear();
-        instrument.reserve(cols * rows);
-        instrument.extend(parent.iter().map(|&root| {
-            let m = regions[root as usize].mean;
-            let (mx, mn) = (m[0].max(m[1]).max(m[2]), m[0].min(m[1]).min(m[2]));
-            let redness = m[0] - 0.5 * (m[1] + m[2]);
-            u8::from(
-                mx > p.min_value && (mx - mn) / mx < p.max_saturation && redness < p.max_redness,
-            )
-        }));
-        cells.clear();
-        cells.extend(labels.iter().map(|&l| instrument[l as usize]));
+        threshold(s, &p, cols * rows);
         let min_component = (p.min_component * (rw * rh) as f32).ceil() as usize;
         let count = drop_small_components(s, cols, rows, rw, rh, min_component);
         let min = (p.min_instrument * (rw * rh) as f32).ceil().max(1.0) as usize;
