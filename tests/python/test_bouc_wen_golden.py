@@ -19,8 +19,9 @@ sys.path.insert(0, str(REPO_ROOT / "tools" / "golden"))
 bw = importlib.import_module("bouc_wen_golden")
 
 DATA_DIR = REPO_ROOT / "crates" / "kflex-model" / "tests" / "data"
-RTOL = 1e-9
-ATOL = 1e-12
+# the tool's own --check tolerances (see there for their size)
+RTOL = bw.CHECK_RTOL
+ATOL = bw.CHECK_ATOL
 
 CASES = bw.cases()
 CASE_IDS = [c.name for c in CASES]

@@ -40,8 +40,14 @@ DEFAULT_OUT = (
 PARAM_NAMES = ("A", "beta", "gamma", "n")
 RTOL = 1e-11
 ATOL = 1e-13
+# Recomputing on another CPU reproduces the stored values only to the
+# integrator's global error, not bit for bit: numpy's SIMD maths differ in
+# the last ulp between CPUs, so DOP853 chooses other steps. Seen: 2.2e-10
+# absolute on z ~ 0.02 (an AMD EPYC against the machine that wrote the
+# files). The absolute floor sits above that and far below any edit that
+# would matter to the Rust tests, which compare against the stored files.
 CHECK_RTOL = 1e-9
-CHECK_ATOL = 1e-12
+CHECK_ATOL = 1e-9
 
 
 @dataclass(frozen=True)
