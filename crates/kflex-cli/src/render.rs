@@ -6,8 +6,8 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use kflex_estimate::{SegmentParams, segment};
 use kflex_model::{
-    Background, Camera, FrameParams, Instrument, Intrinsics, Mask, Occlusion, Rasterizer, Roi,
-    SceneRenderer,
+    Background, Camera, FrameParams, Instrument, Intrinsics, Mask, Occlusion, PoseRange,
+    Rasterizer, Roi, SceneRenderer,
 };
 
 #[derive(Debug, Args)]
@@ -75,6 +75,14 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     let frame = SceneRenderer::new().render(&camera, &shape, &params)?;
     // the working region: where the joint and gripper can be over the paper's poses
     let roi = Roi::working(&camera)?;
+    let [lo, hi] = PoseRange::PAPER.theta_deg;
+    let [d_lo, d_hi] = PoseRange::PAPER.translation_mm;
+    if !(lo..=hi).contains(&args.theta) || !(d_lo..=d_hi).contains(&args.d) {
+        println!(
+            "note: the working region of interest covers θ in [{lo}, {hi}] deg at d in [{d_lo}, {d_hi}] mm; \
+             outside it the region may cut off part of the joint or gripper"
+        );
+    }
     let roi_camera = camera.with_intrinsics(roi.intrinsics(&intrinsics, 48, 48)?);
     let mut silhouette = Mask::new(48, 48)?;
     Rasterizer::new().silhouette(&roi_camera, &shape, &mut silhouette)?;

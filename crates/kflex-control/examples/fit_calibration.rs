@@ -72,7 +72,7 @@ fn evaluate(x: &[f64]) -> Option<Vec<(f64, f64)>> {
     let rows = grid.run().ok()?;
     Some(
         rows.iter()
-            .map(|r| (r.rmse.mean, r.max_hysteresis.mean))
+            .map(|r| (r.rmse_deg.mean, r.max_hysteresis_deg.mean))
             .collect(),
     )
 }

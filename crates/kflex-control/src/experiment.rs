@@ -1,17 +1,5 @@
 //! Open-loop experiments: the paper's test input through the uncompensated
 //! plant, at several sheath configurations, repeated with recorded seeds.
-//!
-//! **Protocol.** The plant starts at rest, straight. The paper's input starts
-//! at θ_d(0) = 25 deg, so a pre-roll first brings the command there with a
-//! raised-cosine ramp of [`OpenLoopScenario::pre_roll_s`] and holds it for as
-//! long again; then the input runs for `periods` periods, sampled every `dt_s`.
-//! Metrics use only those periods and the *measured* angle (Aurora-like noise,
-//! as in the paper's measurements).
-//!
-//! **Repeats.** Each repeat draws a plant from the nominal one with a
-//! parameter spread ([`kflex_model::PlantConfig::perturbed`]) and its own noise
-//! seed; both seeds are recorded. The spread stands in for what changes between
-//! repeated runs on a real robot (temperature, tendon seating, sheath lay).
 
 use kflex_model::{
     AuroraNoise, Bounds, Command, JointModelKind, Plant, PlantConfig, Trajectory, TrajectorySampler,
@@ -110,7 +98,7 @@ impl OpenLoopScenario {
         Bounds::open_closed(0.0, 10.0).check("dt_s", self.dt_s)?;
         Bounds::closed_open(0.0, 1e4).check("pre_roll_s", self.pre_roll_s)?;
         let ticks = self.periods * self.period_s / self.dt_s;
-        Bounds::closed(1.0, 5e7).check("periods * period_s / dt_s", ticks)?;
+        Bounds::open_closed(0.0, 5e7).check("periods * period_s / dt_s", ticks)?;
         Ok(self.trajectory.sampler()?)
     }
 
@@ -171,6 +159,18 @@ impl OpenLoopScenario {
 }
 
 /// The uncompensated-plant grid of `kflex-cli run --estimator none`.
+///
+/// **Protocol.** The plant starts at rest, straight. The paper's input starts
+/// at θ_d(0) = 25 deg, so a pre-roll first brings the command there with a
+/// raised-cosine ramp of [`OpenLoopScenario::pre_roll_s`] and holds it for as
+/// long again; then the input runs for `periods` periods, sampled every `dt_s`.
+/// Metrics use only those periods and the *measured* angle (Aurora-like noise,
+/// as in the paper's measurements).
+///
+/// **Repeats.** Each repeat draws a plant from the nominal one with a
+/// parameter spread ([`kflex_model::PlantConfig::perturbed`]) and its own noise
+/// seed; both seeds are recorded. The spread stands in for what changes between
+/// repeated runs on a real robot (temperature, tendon seating, sheath lay).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct OpenLoopGrid {
@@ -212,11 +212,11 @@ pub struct GridRow {
     /// Joint model that produced it.
     pub joint_model: JointModelKind,
     /// RMSE, deg.
-    pub rmse: MeanStd,
+    pub rmse_deg: MeanStd,
     /// Loop width, deg.
-    pub max_hysteresis: MeanStd,
+    pub max_hysteresis_deg: MeanStd,
     /// Error peak-to-peak, deg.
-    pub error_peak_to_peak: MeanStd,
+    pub error_peak_to_peak_deg: MeanStd,
     /// Per-repeat metrics, in seed order.
     pub runs: Vec<RunMetrics>,
     /// The seed of each repeat.
@@ -255,8 +255,8 @@ impl OpenLoopGrid {
     /// assert_eq!(row.sheath_deg, 180.0);
     /// assert_eq!(row.seeds, [grid.seed]);
     /// // the uncompensated joint misses the command and lags it in a loop
-    /// assert!(row.rmse.mean > 0.0 && row.max_hysteresis.mean > 0.0);
-    /// assert_eq!(row.rmse.std, 0.0); // a single repeat
+    /// assert!(row.rmse_deg.mean > 0.0 && row.max_hysteresis_deg.mean > 0.0);
+    /// assert_eq!(row.rmse_deg.std, 0.0); // a single repeat
     /// # Ok::<(), kflex_control::ControlError>(())
     /// ```
     pub fn run(&self) -> Result<Vec<GridRow>> {
@@ -295,9 +295,9 @@ impl OpenLoopGrid {
         Ok(GridRow {
             sheath_deg,
             joint_model: self.plant.joint_model,
-            rmse: pick(|m| m.rmse_deg)?,
-            max_hysteresis: pick(|m| m.max_hysteresis_deg)?,
-            error_peak_to_peak: pick(|m| m.error_peak_to_peak_deg)?,
+            rmse_deg: pick(|m| m.rmse_deg)?,
+            max_hysteresis_deg: pick(|m| m.max_hysteresis_deg)?,
+            error_peak_to_peak_deg: pick(|m| m.error_peak_to_peak_deg)?,
             runs,
             seeds,
         })

@@ -1,20 +1,4 @@
 //! Metrics of the paper's experiments, defined once and used everywhere.
-//!
-//! * **RMSE**: `sqrt(mean((θ_a − θ_d)²))` over the evaluated samples.
-//! * **Maximum hysteresis size** (the paper's Tables VIII–IX): the paper calls
-//!   it "the peak-to-peak error between the desired input and the measured
-//!   output", but its own Table IX (RMSE 21.9 deg, maximum hysteresis 18.4 deg
-//!   at 270 deg) rules out `max |θ_a − θ_d|`, which can never be below the
-//!   RMSE. kflex reads it as the **width of the hysteresis loop**: the largest
-//!   gap, at equal command θ_d, between the output on the falling branch
-//!   (θ_d decreasing) and on the rising branch (θ_d increasing). Computed by
-//!   binning the samples by θ_d (bins of [`LOOP_BIN_DEG`]), averaging θ_a in
-//!   each bin separately for rising and falling samples (by the sign of the
-//!   command's rate, which is exact), and taking the largest absolute
-//!   difference over the bins that have both. A pure gain error or a constant
-//!   offset has width 0; a backlash of half-width `b` has width `2b`.
-//! * **Error peak-to-peak**, `max e − min e`, is reported beside it so the
-//!   literal reading can be compared too.
 
 use serde::{Deserialize, Serialize};
 
@@ -68,6 +52,22 @@ pub fn error_peak_to_peak(desired: &[f64], actual: &[f64]) -> Result<f64> {
 /// [`ControlError::NonFiniteSample`] for the first NaN or infinite sample,
 /// indexed into `desired` followed by `actual` (then, checked separately,
 /// `desired` followed by `rate`).
+///
+/// * **RMSE**: `sqrt(mean((θ_a − θ_d)²))` over the evaluated samples.
+/// * **Maximum hysteresis size** (the paper's Tables VIII–IX): the paper calls
+///   it "the peak-to-peak error between the desired input and the measured
+///   output", but its own Table IX (RMSE 21.9 deg, maximum hysteresis 18.4 deg
+///   at 270 deg) rules out `max |θ_a − θ_d|`, which can never be below the
+///   RMSE. kflex reads it as the **width of the hysteresis loop**: the largest
+///   gap, at equal command θ_d, between the output on the falling branch
+///   (θ_d decreasing) and on the rising branch (θ_d increasing). Computed by
+///   binning the samples by θ_d (bins of [`LOOP_BIN_DEG`]), averaging θ_a in
+///   each bin separately for rising and falling samples (by the sign of the
+///   command's rate, which is exact), and taking the largest absolute
+///   difference over the bins that have both. A pure gain error or a constant
+///   offset has width 0; a backlash of half-width `b` has width `2b`.
+/// * **Error peak-to-peak**, `max e − min e`, is reported beside it so the
+///   literal reading can be compared too.
 pub fn loop_width(desired: &[f64], rate: &[f64], actual: &[f64]) -> Result<f64> {
     check_pair("loop_width", desired, actual)?;
     check_pair("loop_width", desired, rate)?;

@@ -9,7 +9,7 @@ const WIDTH: [f64; 4] = [9.23, 15.1, 18.3, 18.4];
 fn check(grid: OpenLoopGrid) {
     let rows = grid.run().unwrap();
     for (i, row) in rows.iter().enumerate() {
-        let (r, w) = (row.rmse.mean, row.max_hysteresis.mean);
+        let (r, w) = (row.rmse_deg.mean, row.max_hysteresis_deg.mean);
         assert!(
             (r / RMSE[i] - 1.0).abs() <= 0.20,
             "sheath {}: RMSE {r:.2} vs paper {}",
@@ -24,8 +24,11 @@ fn check(grid: OpenLoopGrid) {
         );
     }
     // and the ordering the paper shows: both grow with the bend (width may saturate)
-    assert!(rows.windows(2).all(|w| w[1].rmse.mean > w[0].rmse.mean));
-    assert!(rows[3].max_hysteresis.mean > rows[0].max_hysteresis.mean);
+    assert!(
+        rows.windows(2)
+            .all(|w| w[1].rmse_deg.mean > w[0].rmse_deg.mean)
+    );
+    assert!(rows[3].max_hysteresis_deg.mean > rows[0].max_hysteresis_deg.mean);
 }
 
 #[test]

@@ -17,4 +17,6 @@ mod error;
 mod segment;
 
 pub use error::{EstimateError, Result};
+/// The shared types this crate's API takes and returns.
+pub use kflex_model::{Bounds, Mask, RangeError, Roi};
 pub use segment::{SegmentParams, Segmentation, Segmenter, segment};

@@ -1,8 +1,4 @@
 //! Pinhole camera of the endoscope.
-//!
-//! Pixel convention: pixel `(i, j)` covers `[i, i+1) × [j, j+1)` and its centre is
-//! `(i + 0.5, j + 0.5)`; a point `(x, y, z)` in the camera frame (x right, y down,
-//! z forward, mm) projects to `u = f_x x/z + c_x`, `v = f_y y/z + c_y`.
 
 use nalgebra::{Isometry3, Point3};
 use serde::{Deserialize, Serialize};
@@ -128,6 +124,10 @@ impl Intrinsics {
 }
 
 /// A camera: intrinsics and where it sits relative to the overtube.
+///
+/// Pixel convention: pixel `(i, j)` covers `[i, i+1) × [j, j+1)` and its centre is
+/// `(i + 0.5, j + 0.5)`; a point `(x, y, z)` in the camera frame (x right, y down,
+/// z forward, mm) projects to `u = f_x x/z + c_x`, `v = f_y y/z + c_y`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
     /// Intrinsics.

@@ -1,9 +1,4 @@
 //! Rate-independent hysteresis operators: Bouc–Wen and backlash (play).
-//!
-//! Both are driven by the *increment* of their input, not by time, so their
-//! output depends only on the path the input took: sampling the same path at
-//! a coarser or finer tick gives the same result (to the integrator's
-//! tolerance for Bouc–Wen, exactly for play).
 
 use serde::{Deserialize, Serialize};
 
@@ -52,7 +47,7 @@ impl BoucWenParams {
     /// # Errors
     /// [`ModelError::OutOfRange`] naming the first parameter out of its range,
     /// in the order above (`bouc_wen.a`, `bouc_wen.beta + bouc_wen.gamma`,
-    /// `bouc_wen.beta (at least |gamma|)`, `bouc_wen.n`, `bouc_wen.alpha`); a
+    /// `bouc_wen.beta` (whose lower bound is |γ|), `bouc_wen.n`, `bouc_wen.alpha`); a
     /// NaN or infinite parameter is out of range.
     ///
     /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
@@ -60,8 +55,7 @@ impl BoucWenParams {
         Bounds::open(0.0, f64::INFINITY).check("bouc_wen.a", self.a)?;
         Bounds::open(0.0, f64::INFINITY)
             .check("bouc_wen.beta + bouc_wen.gamma", self.beta + self.gamma)?;
-        Bounds::closed_open(self.gamma.abs(), f64::INFINITY)
-            .check("bouc_wen.beta (at least |gamma|)", self.beta)?;
+        Bounds::closed_open(self.gamma.abs(), f64::INFINITY).check("bouc_wen.beta", self.beta)?;
         Bounds::closed(1.0, 10.0).check("bouc_wen.n", self.n)?;
         Bounds::closed(0.0, 1.0).check("bouc_wen.alpha", self.alpha)?;
         Ok(())
@@ -80,6 +74,11 @@ impl BoucWenParams {
 /// is piecewise linear in `z`); for other `n`, with classic RK4 sub-steps no
 /// longer than [`BoucWen::MAX_SUBSTEP_FRACTION`] of the saturation length
 /// `z_bound / A`.
+///
+/// Both are driven by the *increment* of their input, not by time, so their
+/// output depends only on the path the input took: sampling the same path at
+/// a coarser or finer tick gives the same result (to the integrator's
+/// tolerance for Bouc–Wen, exactly for play).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BoucWen {
     params: BoucWenParams,
@@ -357,7 +356,7 @@ mod tests {
                     gamma: 0.5,
                     ..BoucWenParams::normalised(1.0)
                 },
-                "bouc_wen.beta (at least |gamma|)",
+                "bouc_wen.beta",
             ),
             (
                 BoucWenParams {
@@ -392,7 +391,7 @@ mod tests {
                 },
                 0.0,
             ),
-            "bouc_wen.beta (at least |gamma|)",
+            "bouc_wen.beta",
         );
         assert_eq!((e.value, e.bounds.min), (0.1, 0.5));
         let e = expect_range(Play::new(-1.0, 0.0), "play.half_width");

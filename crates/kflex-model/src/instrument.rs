@@ -1,15 +1,4 @@
 //! The instrument's shape as it leaves the overtube, for a bend θ and a translation d.
-//!
-//! One definition serves the rasterizer and the mechanics: the bending joint's
-//! links are [`JointParams`]'s (`2n` links of `link_length_mm`, radius
-//! `link_radius_mm`, equal contact angles `θ/2n` as in Eq. 1), the tool is
-//! [`JointParams::tool_length_mm`] long. The shape is a set of capsules in the
-//! **overtube frame**: origin at the centre of the overtube's distal face, `+z`
-//! along the overtube (the view direction of the camera mounted there), `+y`
-//! down in the image, `+x` right. The instrument channel exits the face at
-//! [`InstrumentParams::channel_offset_mm`]; the instrument's shaft extends `d`
-//! from it; the joint bends about `+y`, so positive θ swings the tip toward `+x`.
-//! The gripper's two jaws open symmetrically in the plane across the bend.
 
 use serde::{Deserialize, Serialize};
 
@@ -99,6 +88,17 @@ pub struct InstrumentShape {
 }
 
 /// Builds shapes from (θ, d), checking both against the workspace.
+///
+/// One definition serves the rasterizer and the mechanics: the bending joint's
+/// links are [`JointParams`]'s (`2n` links of `link_length_mm`, radius
+/// `link_radius_mm`, equal contact angles `θ/2n` as in Eq. 1), the tool is
+/// [`JointParams::tool_length_mm`] long. The shape is a set of capsules in the
+/// **overtube frame**: origin at the centre of the overtube's distal face, `+z`
+/// along the overtube (the view direction of the camera mounted there), `+y`
+/// down in the image, `+x` right. The instrument channel exits the face at
+/// [`InstrumentParams::channel_offset_mm`]; the instrument's shaft extends `d`
+/// from it; the joint bends about `+y`, so positive θ swings the tip toward `+x`.
+/// The gripper's two jaws open symmetrically in the plane across the bend.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Instrument {
     /// Joint and tool dimensions (shared with the mechanics).
@@ -127,16 +127,29 @@ impl Instrument {
         n_segments: u32,
         translation: TranslationParams,
     ) -> Result<Self> {
-        joint.validate()?;
-        params.validate()?;
-        Bounds::closed(1.0, 16.0).check("n_segments", f64::from(n_segments))?;
-        translation.validate()?;
-        Ok(Self {
+        let out = Self {
             joint,
             params,
             n_segments,
             translation,
-        })
+        };
+        out.validate()?;
+        Ok(out)
+    }
+
+    /// Checks every parameter (the fields are public, so an instrument can
+    /// be built without [`Instrument::new`]).
+    ///
+    /// # Errors
+    /// [`crate::ModelError::OutOfRange`] naming the first parameter out of its
+    /// range (the joint's, the shape's, `n_segments` in [1, 16], the
+    /// translation stage's).
+    pub fn validate(&self) -> Result<()> {
+        self.joint.validate()?;
+        self.params.validate()?;
+        Bounds::closed(1.0, 16.0).check("n_segments", f64::from(self.n_segments))?;
+        self.translation.validate()?;
+        Ok(())
     }
 
     /// The default K-FLEX-scale instrument (the plant's defaults).

@@ -1,19 +1,5 @@
 //! Mechanics of the continuum bending joint: the shape of the link chain, the
 //! loads on it, and the quasi-static analytic solver.
-//!
-//! The joint is `2n` rolling links (two per segment, as Eq. 1's `2n` contact
-//! angles), each bending by `φ_j` about the instrument's `+y` axis, so positive
-//! θ bends the tip toward `+x`; the instrument axis is `+z`. The tendon pair
-//! loads every contact with the generalised force of virtual work on Eq. 1:
-//! ```text
-//! τ_j = F d_t cos φ_j − (T_a + T_b)(R − B) sin φ_j        (N·mm)
-//! ```
-//! (`F = T_a − T_b`; the second term is the pretension's straightening moment).
-//! Each contact has an elastic restoring moment `k_φ φ_j` (the backbone), and
-//! gravity and a tip force act on the links and the tool. The analytic solver
-//! assumes equal contact angles `φ_j = θ/2n` and solves the balance of
-//! generalised forces along θ; the rapier model ([`crate::joint_rapier`])
-//! lets every contact find its own angle.
 
 use serde::{Deserialize, Serialize};
 
@@ -29,11 +15,43 @@ pub enum JointModelKind {
     /// Quasi-static closed-form balance with equal contact angles (fast).
     #[default]
     Analytic,
-    /// A rapier3d multibody chain, integrated to rest every tick.
+    /// A rapier3d multibody chain, integrated to rest every tick (cargo
+    /// feature `multibody`).
+    ///
+    /// `2n` links hang from a fixed base (the overtube exit) by revolute joints
+    /// about `+y`. Each contact carries the backbone's elasticity as rapier's
+    /// implicit joint spring (`k_φ`), the tendon moment `τ_j` of
+    /// [`JointParams`] as an internal torque pair on the two bodies it joins,
+    /// gravity on the links' and the tool's masses, and the tip load as a force at
+    /// the tool tip. The tendon force depends on where the joint is (through the
+    /// distal stroke `p = Σ d_t sin φ_j`), so it is recomputed every internal step.
+    ///
+    /// Quasi-static use: every plant tick integrates the chain until it is at rest.
+    /// Real links weigh a fraction of a gram, which would make the dynamics
+    /// needlessly stiff; an armature (rotor-like inertia on each joint, no weight)
+    /// and joint damping slow them to a critically damped settle of a few tens of
+    /// milliseconds. They change how the chain gets to rest, not where it rests.
+    ///
+    /// rapier works in `f32` with glam types; this module converts at the boundary
+    /// and works in metres, kilograms and newtons inside.
     Rapier,
 }
 
 /// Mechanical parameters of the bending joint and the distal tool. SI-ish units as named.
+///
+/// The joint is `2n` rolling links (two per segment, as Eq. 1's `2n` contact
+/// angles), each bending by `φ_j` about the instrument's `+y` axis, so positive
+/// θ bends the tip toward `+x`; the instrument axis is `+z`. The tendon pair
+/// loads every contact with the generalised force of virtual work on Eq. 1:
+/// ```text
+/// τ_j = F d_t cos φ_j − (T_a + T_b)(R − B) sin φ_j        (N·mm)
+/// ```
+/// (`F = T_a − T_b`; the second term is the pretension's straightening moment).
+/// Each contact has an elastic restoring moment `k_φ φ_j` (the backbone), and
+/// gravity and a tip force act on the links and the tool. The analytic solver
+/// assumes equal contact angles `φ_j = θ/2n` and solves the balance of
+/// generalised forces along θ; the rapier model ([`JointModelKind::Rapier`])
+/// lets every contact find its own angle.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct JointParams {

@@ -1,19 +1,4 @@
 //! Tendon kinematics of the continuum bending joint: the paper's Eq. 1–2.
-//!
-//! ```text
-//! ΔL_a(θ) = 2n { R − d_t sin(θ/2n) − (R − B) cos(θ/2n) − B }      (Eq. 1)
-//! ΔL_b(θ) = ΔL_a(−θ)                                              (Eq. 2)
-//! ```
-//! with `n` segments (each has two rolling contacts, hence `2n` equal
-//! contact angles `φ = θ/2n`), `R` the radius of the rolling contact surface,
-//! `B` the offset of the tendon's exit point from that surface, and `d_t`
-//! the tendon's lateral offset from the joint axis. The paper writes the
-//! tendon offset `d`; here it is [`TendonGeometry::tendon_offset_mm`] so it
-//! is not confused with the instrument's translation `d`.
-//!
-//! Sign convention: positive θ bends the joint toward tendon `a`, which then
-//! shortens (ΔL_a < 0); a motor *pulls* tendon `a` by `−ΔL_a`.
-//! Angles are radians in this module (the plant's API speaks degrees).
 
 use serde::{Deserialize, Serialize};
 
@@ -21,6 +6,21 @@ use crate::error::{ModelError, Result};
 use crate::range::{Bounds, RangeError};
 
 /// Geometry of the tendon-driven continuum joint (Eq. 1). Lengths in mm.
+///
+/// ```text
+/// ΔL_a(θ) = 2n { R − d_t sin(θ/2n) − (R − B) cos(θ/2n) − B }      (Eq. 1)
+/// ΔL_b(θ) = ΔL_a(−θ)                                              (Eq. 2)
+/// ```
+/// with `n` segments (each has two rolling contacts, hence `2n` equal
+/// contact angles `φ = θ/2n`), `R` the radius of the rolling contact surface,
+/// `B` the offset of the tendon's exit point from that surface, and `d_t`
+/// the tendon's lateral offset from the joint axis. The paper writes the
+/// tendon offset `d`; here it is [`TendonGeometry::tendon_offset_mm`] so it
+/// is not confused with the instrument's translation `d`.
+///
+/// Sign convention: positive θ bends the joint toward tendon `a`, which then
+/// shortens (ΔL_a < 0); a motor *pulls* tendon `a` by `−ΔL_a`.
+/// Angles are radians in this module (the plant's API speaks degrees).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TendonGeometry {
@@ -56,7 +56,7 @@ impl TendonGeometry {
     /// (`n_segments` outside `[1, 16]`, `r_mm` outside `(0, 100)` mm, `b_mm`
     /// outside `[0, r_mm]`, `tendon_offset_mm` outside `(0, 100)` mm); when
     /// Eq. 1 is not monotone over `±max_theta_rad`, one named
-    /// `max_theta_deg (Eq. 1 must be monotone over the joint's range)` that
+    /// `max_theta_deg` (Eq. 1 must be monotone over the joint's range) that
     /// carries `max_theta_rad` in degrees and, as its bounds, the range this
     /// geometry allows.
     pub fn validate(&self, max_theta_rad: f64) -> Result<()> {
@@ -69,7 +69,7 @@ impl TendonGeometry {
         if phi_max >= limit || phi_max >= std::f64::consts::FRAC_PI_2 {
             let theta_limit_deg = (2.0 * self.two_n() * limit).to_degrees() / 2.0;
             return Err(RangeError {
-                name: "max_theta_deg (Eq. 1 must be monotone over the joint's range)",
+                name: "max_theta_deg",
                 value: max_theta_rad.to_degrees(),
                 bounds: Bounds::open(0.0, theta_limit_deg),
             }
@@ -204,10 +204,7 @@ mod tests {
             tendon_offset_mm: 0.5,
             n_segments: 1,
         };
-        let e = expect_range(
-            g.validate(MAX),
-            "max_theta_deg (Eq. 1 must be monotone over the joint's range)",
-        );
+        let e = expect_range(g.validate(MAX), "max_theta_deg");
         // tan(φ) < d_t/(R − B) = 0.1 with 2n = 2 contacts: θ < 2·atan(0.1) = 11.4°
         assert!((e.bounds.max - 2.0 * 0.1f64.atan().to_degrees()).abs() < 1e-9);
         assert!((e.value - MAX.to_degrees()).abs() < 1e-9);

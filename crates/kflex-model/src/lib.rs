@@ -33,9 +33,10 @@
 //! `_deg`, `_rad`, `_mm`, `_m`, `_s`, `_hz`, `_g`, `_n` (newton), `_nmm`
 //! (newton-millimetre); a quotient joins its units with `_per_`
 //! (`_n_per_mm`, `_nmm_per_rad`, `_deg_per_s`, `_mm_per_s`, `_m_per_s2`).
-//! Pixel quantities (image sizes, pixel coordinates, the intrinsics `fx`,
-//! `fy`, `cx`, `cy`) are in pixels and carry no suffix; dimensionless
-//! quantities (ratios, friction coefficients, normalised states) none either.
+//! Image sizes, pixel coordinates and the intrinsics `fx`, `fy`, `cx`, `cy`
+//! are in pixels by convention and carry no suffix; other pixel quantities
+//! say `_px` (`blur_px`, `margin_px`). Dimensionless quantities (ratios,
+//! friction coefficients, normalised states) carry none.
 //!
 //! ## Cargo features
 //!
@@ -77,7 +78,7 @@ pub use kinematics::TendonGeometry;
 pub use mask::Mask;
 pub use plant::{AuroraNoise, Command, Plant, PlantConfig, PlantState};
 pub use range::MAX_IMAGE_SIDE;
-pub use range::{Bounds, Num, RangeError};
+pub use range::{Bounds, RangeError};
 pub use raster::Rasterizer;
 pub use roi::Roi;
 pub use scene::{Background, Frame, FrameParams, Occlusion, SceneRenderer};

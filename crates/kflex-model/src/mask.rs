@@ -1,5 +1,5 @@
 //! [`Mask`]: the binary image every stage shares (silhouettes, segmentations,
-//! ground truth), and the one check of image sizes.
+//! ground truth).
 
 use crate::error::{ModelError, Result};
 use crate::range::{Bounds, RangeError};

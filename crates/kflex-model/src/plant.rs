@@ -1,12 +1,5 @@
 //! The testbed plant: command in, actual joint angle (and everything the
 //! tendons did to get there) out.
-//!
-//! Per tick: the command θ_c becomes motor strokes through Eq. 1–2 (the
-//! controller's kinematic model, as in the paper); the strokes pass the
-//! tendon-sheath transmission ([`crate::transmission`]); the joint
-//! ([`crate::joint`], analytic or rapier) settles where the tendons, its
-//! backbone, gravity and the tip load balance. An optional Aurora-like sensor
-//! adds Gaussian noise to the *measured* angle; the true angle is never noisy.
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -178,6 +171,13 @@ enum JointSolver {
 }
 
 /// The tendon-driven bending joint with its sheath: the ground truth of the testbed.
+///
+/// Per tick: the command θ_c becomes motor strokes through Eq. 1–2 (the
+/// controller's kinematic model, as in the paper); the strokes pass the
+/// tendon-sheath transmission ([`TendonSheath`]); the joint
+/// ([`JointParams`], analytic or rapier) settles where the tendons, its
+/// backbone, gravity and the tip load balance. An optional Aurora-like sensor
+/// adds Gaussian noise to the *measured* angle; the true angle is never noisy.
 pub struct Plant {
     config: PlantConfig,
     sheath: TendonSheath,

@@ -1,4 +1,5 @@
-//! Ranges of valid values, and the error that says a value left one.
+//! Ranges of valid values, the error that says a value left one, and the
+//! one check of image sizes.
 //!
 //! Every crate of the workspace checks its parameters and inputs with
 //! [`Bounds::check`], so an out-of-range value is reported the same way
@@ -139,7 +140,7 @@ pub struct RangeError {
 /// scientific notation for huge and tiny ones (so `f64::MAX` is `1.7976931348623157e308`,
 /// not 309 digits).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Num(pub f64);
+pub(crate) struct Num(pub(crate) f64);
 
 impl fmt::Display for Num {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {

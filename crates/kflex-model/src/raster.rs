@@ -1,11 +1,4 @@
 //! Software rasterizer: binary silhouettes of the instrument.
-//!
-//! Each capsule is drawn as its cylinder — a prism of [`CYLINDER_SIDES`] sides
-//! whose cross-section has the circle's area — plus its end spheres, which are
-//! filled exactly (a pixel is inside where the ray through its centre meets the
-//! sphere). Triangles are clipped at [`Z_NEAR`] and filled where the pixel
-//! centre lies inside or on their edges. No GPU, no allocation per frame once
-//! the [`Rasterizer`]'s buffers have grown.
 
 use crate::camera::{Camera, Intrinsics};
 use crate::error::{ModelError, Result};
@@ -19,6 +12,13 @@ const CYLINDER_SIDES: usize = 16;
 const Z_NEAR: f64 = 0.5;
 
 /// Reusable rasterizer state.
+///
+/// Each capsule is drawn as its cylinder — a prism of 16 sides
+/// whose cross-section has the circle's area — plus its end spheres, which are
+/// filled exactly (a pixel is inside where the ray through its centre meets the
+/// sphere). Triangles are clipped 0.5 mm in front of the camera and filled where the pixel
+/// centre lies inside or on their edges. No GPU, no allocation per frame once
+/// the [`Rasterizer`]'s buffers have grown.
 #[derive(Debug, Default, Clone)]
 pub struct Rasterizer {
     triangles: Vec<[Vector3<f64>; 3]>,

@@ -26,7 +26,7 @@ impl Roi {
     /// Checks that the region is not empty and lies inside a `width × height` image.
     ///
     /// # Errors
-    /// [`ModelError::OutOfRange`] naming the axis that fails: `roi.width` or
+    /// [`crate::ModelError::OutOfRange`] naming the axis that fails: `roi.width` or
     /// `roi.height` when empty, `roi.x0 + roi.width` or `roi.y0 + roi.height`
     /// past the image's edge (the bounds are the image's).
     pub fn check_within(&self, width: u32, height: u32) -> Result<()> {

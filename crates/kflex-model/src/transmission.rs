@@ -1,53 +1,4 @@
 //! Tendon-sheath transmission of the antagonistic tendon pair (lumped, quasi-static).
-//!
-//! The motors set the proximal differential stroke `q` of the pair (mm). On its
-//! way to the joint the motion passes the drive's backlash (a [`Play`] of
-//! half-width `drive_backlash_mm`, giving `q_b`), then the tendons, which stretch
-//! (differential stiffness `k`, N/mm) and rub on the sheath.
-//!
-//! **Elastic force.** With `δ = q_b − p` (`p`: the joint's distal differential
-//! stroke), the pair pulls with `E(δ) = kδ` while both tendons are taut
-//! (`|kδ| ≤ 2T₀`, pretension `T₀`) and `sign(δ)(T₀ + k|δ|/2)` once one is slack:
-//! a tendon cannot push, and only the other one (stiffness `k/2`) still pulls.
-//!
-//! **Capstan law.** A tendon sliding over a total wrap `Φ` with friction
-//! coefficient `μ` carries `T_p = T_d e^{±μΦ}`. With distal tensions
-//! `T₀ ± F/2` (`F = T_a − T_b`), the sum of both tendons' friction while the
-//! pair slides is `±(2T₀ sinh μΦ) + F (cosh μΦ − 1)`, so on the two sliding branches
-//! ```text
-//! F cosh(μΦ) = E ∓ H,      H = 2T₀ sinh(μΦ) + F_c
-//! ```
-//! (`F_c`: load-independent Coulomb friction of guides and seals). `Φ` is the
-//! sheath configuration plus the wrap the tendons already have inside the
-//! instrument (`route_wrap_deg`). `H` is the hysteresis, `cosh μΦ` the lost
-//! motion (the tendons' effective stiffness falls as friction grows); both
-//! grow with the bend by the mechanism, not a table.
-//!
-//! **Shaft coupling.** The tendons share the instrument's shaft, at a lateral
-//! offset from its neutral axis. Bending the sheath by `Φ_sheath` lengthens one
-//! tendon's path and shortens the other's, shifting the differential stroke at
-//! the joint by `−c Φ_sheath` (`c = sheath_coupling_mm_per_rad`: the offset
-//! projected on the sheath's bending plane; its sign says which way the
-//! sheath is bent relative to the joint). The joint's zero moves with the
-//! sheath — an error a kinematic model trained on a straight sheath cannot know.
-//!
-//! **Stick.** The friction acts on the tendons inside the sheath, so the pair
-//! is two springs: the long run through the sheath (`k`, with the slack law
-//! above) and the short run from the sheath's end through the joint
-//! (`k_d = distal_stiffness_n_per_mm`). The friction holds the node between
-//! them: it stays put while the mobilised friction `E(q_b − c − s) − F cosh μΦ`
-//! lies within `±H`, and slides along a branch where it reaches the bound.
-//! The node `s` is therefore a play between the two branch positions (exact
-//! Coulomb stick). Stuck, the joint still feels the distal run's stiffness
-//! `k_d`: stuck tendons lock the joint rather than leaving it free. Sliding,
-//! `F = k_d (s − p)` with `F cosh μΦ = E ∓ H` — the capstan branches above,
-//! with the two runs in series.
-//!
-//! Assumptions, stated so they can be revisited: the friction capacity is
-//! that of the pretensioned pair (a slack tendon changes the elastic law, not
-//! `H`); the distal run stays taut; the common-mode path change of Eq. 1 is
-//! absorbed by the tendons' compliance; the transmission is quasi-static
-//! (tendon and motor inertia neglected; the paper's test input is 0.159 Hz).
 
 use serde::{Deserialize, Serialize};
 
@@ -110,6 +61,55 @@ impl SheathParams {
 }
 
 /// The stateful transmission for one sheath configuration.
+///
+/// The motors set the proximal differential stroke `q` of the pair (mm). On its
+/// way to the joint the motion passes the drive's backlash (a [`Play`] of
+/// half-width `drive_backlash_mm`, giving `q_b`), then the tendons, which stretch
+/// (differential stiffness `k`, N/mm) and rub on the sheath.
+///
+/// **Elastic force.** With `δ = q_b − p` (`p`: the joint's distal differential
+/// stroke), the pair pulls with `E(δ) = kδ` while both tendons are taut
+/// (`|kδ| ≤ 2T₀`, pretension `T₀`) and `sign(δ)(T₀ + k|δ|/2)` once one is slack:
+/// a tendon cannot push, and only the other one (stiffness `k/2`) still pulls.
+///
+/// **Capstan law.** A tendon sliding over a total wrap `Φ` with friction
+/// coefficient `μ` carries `T_p = T_d e^{±μΦ}`. With distal tensions
+/// `T₀ ± F/2` (`F = T_a − T_b`), the sum of both tendons' friction while the
+/// pair slides is `±(2T₀ sinh μΦ) + F (cosh μΦ − 1)`, so on the two sliding branches
+/// ```text
+/// F cosh(μΦ) = E ∓ H,      H = 2T₀ sinh(μΦ) + F_c
+/// ```
+/// (`F_c`: load-independent Coulomb friction of guides and seals). `Φ` is the
+/// sheath configuration plus the wrap the tendons already have inside the
+/// instrument (`route_wrap_deg`). `H` is the hysteresis, `cosh μΦ` the lost
+/// motion (the tendons' effective stiffness falls as friction grows); both
+/// grow with the bend by the mechanism, not a table.
+///
+/// **Shaft coupling.** The tendons share the instrument's shaft, at a lateral
+/// offset from its neutral axis. Bending the sheath by `Φ_sheath` lengthens one
+/// tendon's path and shortens the other's, shifting the differential stroke at
+/// the joint by `−c Φ_sheath` (`c = sheath_coupling_mm_per_rad`: the offset
+/// projected on the sheath's bending plane; its sign says which way the
+/// sheath is bent relative to the joint). The joint's zero moves with the
+/// sheath — an error a kinematic model trained on a straight sheath cannot know.
+///
+/// **Stick.** The friction acts on the tendons inside the sheath, so the pair
+/// is two springs: the long run through the sheath (`k`, with the slack law
+/// above) and the short run from the sheath's end through the joint
+/// (`k_d = distal_stiffness_n_per_mm`). The friction holds the node between
+/// them: it stays put while the mobilised friction `E(q_b − c − s) − F cosh μΦ`
+/// lies within `±H`, and slides along a branch where it reaches the bound.
+/// The node `s` is therefore a play between the two branch positions (exact
+/// Coulomb stick). Stuck, the joint still feels the distal run's stiffness
+/// `k_d`: stuck tendons lock the joint rather than leaving it free. Sliding,
+/// `F = k_d (s − p)` with `F cosh μΦ = E ∓ H` — the capstan branches above,
+/// with the two runs in series.
+///
+/// Assumptions, stated so they can be revisited: the friction capacity is
+/// that of the pretensioned pair (a slack tendon changes the elastic law, not
+/// `H`); the distal run stays taut; the common-mode path change of Eq. 1 is
+/// absorbed by the tendons' compliance; the transmission is quasi-static
+/// (tendon and motor inertia neglected; the paper's test input is 0.159 Hz).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TendonSheath {
     params: SheathParams,

@@ -51,7 +51,9 @@ impl Roi {
 
     /// The smallest square region of `camera`'s image that contains the
     /// bending joint and the gripper for every pose in `poses`, plus
-    /// `margin_px` on each side, clipped to the image.
+    /// `margin_px` on each side, clipped to the image. Where that box is
+    /// wider than the image's shorter side, the square is that side and
+    /// holds the middle of the box.
     ///
     /// The poses are sampled every 1° of bend and every 1 mm of translation
     /// (ends included). Each capsule's image is bounded exactly: a capsule is
@@ -73,19 +75,31 @@ impl Roi {
     ///
     /// # Errors
     /// [`ModelError::OutOfWorkspace`] when a pose lies outside the
-    /// instrument's workspace; [`ModelError::OutOfRange`] for a reversed or
-    /// non-finite range; [`ModelError::NotInView`] when the distal part never
-    /// comes into the image.
+    /// instrument's workspace; [`ModelError::OutOfRange`] for an instrument
+    /// parameter out of its range, or a reversed, non-finite or too wide pose
+    /// range (a span past the workspace's); [`ModelError::NotInView`] when the
+    /// distal part never comes into the image.
     pub fn for_workspace(
         camera: &Camera,
         instrument: &Instrument,
         poses: &PoseRange,
         margin_px: u32,
     ) -> Result<Roi> {
+        // a validated instrument bounds the poses (|θ| ≤ 170°, d ≤ 1 m), so
+        // the sampling below is at most 341 × 1001 poses before a pose out
+        // of the workspace stops it
+        instrument.validate()?;
         let [t0, t1] = poses.theta_deg;
         let [d0, d1] = poses.translation_mm;
+        let any = Bounds::open(f64::NEG_INFINITY, f64::INFINITY);
+        any.check("poses.theta_deg[0]", t0)?;
+        any.check("poses.translation_mm[0]", d0)?;
         Bounds::closed(t0, f64::INFINITY).check("poses.theta_deg[1]", t1)?;
         Bounds::closed(d0, f64::INFINITY).check("poses.translation_mm[1]", d1)?;
+        let reach = Bounds::closed(0.0, 2.0 * instrument.joint.max_theta_deg);
+        reach.check("poses.theta_deg span", t1 - t0)?;
+        Bounds::closed(0.0, instrument.translation.max_mm)
+            .check("poses.translation_mm span", d1 - d0)?;
         let nt = ((t1 - t0).ceil() as usize).max(1);
         let nd = ((d1 - d0).ceil() as usize).max(1);
         let mut shape = InstrumentShape::default();
@@ -102,14 +116,19 @@ impl Roi {
                 instrument.shape_into(theta, d, &mut shape)?;
                 for c in shape.capsules.iter().filter(|c| c.part != Part::Shaft) {
                     for end in [c.a_mm, c.b_mm] {
-                        if let Some([u0, v0, u1, v1]) = sphere_extent(camera, end, c.radius_mm) {
-                            bbox = [
-                                bbox[0].min(u0),
-                                bbox[1].min(v0),
-                                bbox[2].max(u1),
-                                bbox[3].max(v1),
-                            ];
-                        }
+                        // a sphere that reaches the camera's plane can cover any pixel
+                        let [u0, v0, u1, v1] = sphere_extent(camera, end, c.radius_mm).unwrap_or([
+                            f64::NEG_INFINITY,
+                            f64::NEG_INFINITY,
+                            f64::INFINITY,
+                            f64::INFINITY,
+                        ]);
+                        bbox = [
+                            bbox[0].min(u0),
+                            bbox[1].min(v0),
+                            bbox[2].max(u1),
+                            bbox[3].max(v1),
+                        ];
                     }
                 }
             }
@@ -128,7 +147,8 @@ impl Roi {
                 what: "the bending joint and gripper over this pose range",
             });
         }
-        // square it, centred on the box, shifted (not cut) to stay inside the image
+        // square it, centred on the box, shifted (not cut) to stay inside the
+        // image; a box wider than the image's shorter side is cut to that side
         let side = (u1 - u0).max(v1 - v0).ceil().min(w.min(h));
         let place = |lo: f64, hi: f64, limit: f64| {
             (0.5 * (lo + hi - side)).clamp(0.0, limit - side).floor()
@@ -237,6 +257,29 @@ mod tests {
                     ("poses.theta_deg[1]", 0.0, 50.0)
                 );
             }
+            other => panic!("{other:?}"),
+        }
+        let nan = PoseRange {
+            translation_mm: [f64::NAN, 10.0],
+            ..PoseRange::PAPER
+        };
+        match Roi::for_workspace(&camera, &Instrument::kflex(), &nan, 0) {
+            Err(ModelError::OutOfRange(e)) => assert_eq!(e.name, "poses.translation_mm[0]"),
+            other => panic!("{other:?}"),
+        }
+        let huge = PoseRange {
+            theta_deg: [-1e308, 1e308],
+            ..PoseRange::PAPER
+        };
+        match Roi::for_workspace(&camera, &Instrument::kflex(), &huge, 0) {
+            Err(ModelError::OutOfRange(e)) => assert_eq!(e.name, "poses.theta_deg span"),
+            other => panic!("{other:?}"),
+        }
+        // an instrument built by hand is checked, not trusted
+        let mut wild = Instrument::kflex();
+        wild.joint.max_theta_deg = 1e9;
+        match Roi::for_workspace(&camera, &wild, &PoseRange::PAPER, 0) {
+            Err(ModelError::OutOfRange(e)) => assert_eq!(e.name, "max_theta_deg"),
             other => panic!("{other:?}"),
         }
         let past = PoseRange {

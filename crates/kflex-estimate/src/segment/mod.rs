@@ -1,29 +1,5 @@
 //! Region-based segmentation (the paper's Fig. 4b): region of interest,
 //! split, merge, threshold — giving the 48×48 binary image IBJAE consumes.
-//!
-//! 1. **Region of interest**: a rectangle of the frame ([`Roi`]).
-//! 2. **Split**: a quadtree of aligned power-of-two blocks. A block is split in
-//!    four while the range of its brightness or of its redness exceeds
-//!    [`SegmentParams::split_range`] and its side exceeds [`SegmentParams::min_block`]
-//!    px (at least 2). Block statistics (ranges and colour sums, in integers) come
-//!    from a pyramid built bottom-up in one pass, so the split is linear in the
-//!    pixels. On x86-64 CPUs with AVX2 the pyramid runs on a vectorised copy of
-//!    the same code, chosen at run time.
-//! 3. **Merge**: adjacent leaves whose mean colours differ by less than
-//!    [`SegmentParams::merge_distance`] become one region (union–find over the
-//!    leaves' adjacency, on the regions' running means). No leaf is smaller than
-//!    a 2×2 cell, so merging, thresholding and the component filter work on the
-//!    grid of cells, a quarter of the pixels.
-//! 4. **Threshold**: a region is instrument where its mean colour is metallic —
-//!    unsaturated (`(max − min)/max < max_saturation`), not reddish
-//!    (`r − (g + b)/2 < max_redness`) and not dark (`max > min_value`) — and
-//!    tissue where it is reddish or dark (lumen).
-//!    Tape is red, so a taped part is lost, as in the paper. Connected instrument
-//!    components smaller than [`SegmentParams::min_component`] of the region
-//!    (specular spots on wet mucosa) are dropped.
-//! 5. The result is resampled to `out × out` (area vote: a cell is set where at
-//!    least half its pixels are). Fewer than [`SegmentParams::min_instrument`]
-//!    of the region's pixels set: [`EstimateError::NoInstrument`].
 
 mod pyramid;
 mod regions;
@@ -111,6 +87,30 @@ pub fn segment(
 /// The segmentation stage of the estimation loop: [`segment`] with its working
 /// memory kept from frame to frame, so that after the first frame of a region
 /// size a frame costs no allocation.
+///
+/// 1. **Region of interest**: a rectangle of the frame ([`Roi`]).
+/// 2. **Split**: a quadtree of aligned power-of-two blocks. A block is split in
+///    four while the range of its brightness or of its redness exceeds
+///    [`SegmentParams::split_range`] and its side exceeds [`SegmentParams::min_block`]
+///    px (at least 2). Block statistics (ranges and colour sums, in integers) come
+///    from a pyramid built bottom-up in one pass, so the split is linear in the
+///    pixels. On x86-64 CPUs with AVX2 the pyramid runs on a vectorised copy of
+///    the same code, chosen at run time.
+/// 3. **Merge**: adjacent leaves whose mean colours differ by less than
+///    [`SegmentParams::merge_distance`] become one region (union–find over the
+///    leaves' adjacency, on the regions' running means). No leaf is smaller than
+///    a 2×2 cell, so merging, thresholding and the component filter work on the
+///    grid of cells, a quarter of the pixels.
+/// 4. **Threshold**: a region is instrument where its mean colour is metallic —
+///    unsaturated (`(max − min)/max < max_saturation`), not reddish
+///    (`r − (g + b)/2 < max_redness`) and not dark (`max > min_value`) — and
+///    tissue where it is reddish or dark (lumen).
+///    Tape is red, so a taped part is lost, as in the paper. Connected instrument
+///    components smaller than [`SegmentParams::min_component`] of the region
+///    (specular spots on wet mucosa) are dropped.
+/// 5. The result is resampled to `out × out` (area vote: a cell is set where at
+///    least half its pixels are). Fewer than [`SegmentParams::min_instrument`]
+///    of the region's pixels set: [`EstimateError::NoInstrument`].
 #[derive(Debug)]
 pub struct Segmenter {
     params: SegmentParams,

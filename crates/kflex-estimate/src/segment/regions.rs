@@ -138,8 +138,8 @@ pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, distance: f32) {
     }
 }
 
-/// Thresholds each merged region by its mean colour (see the module docs of
-/// `segment`: metallic is unsaturated, not reddish, not dark) and marks the
+/// Thresholds each merged region by its mean colour (see
+/// [`Segmenter`](super::Segmenter): metallic is unsaturated, not reddish, not dark) and marks the
 /// cells of instrument regions in `s.cells`.
 pub(super) fn threshold(s: &mut Scratch, p: &SegmentParams, cells_total: usize) {
     let Scratch {

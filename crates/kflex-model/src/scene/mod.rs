@@ -1,10 +1,6 @@
 //! Shaded endoscope frames: the instrument over procedural clinical backgrounds,
 //! lit by the endoscope's light, with occluding tape, illumination change,
 //! blur and sensor noise — and the ground-truth masks of every frame.
-//!
-//! Backgrounds are generated from a seed ([`Background`]) and cached per
-//! (kind, seed, size) in a [`SceneRenderer`], so a frame costs the instrument's
-//! shading and the sensor model, not the texture synthesis.
 
 mod background;
 mod sensor;
@@ -106,6 +102,10 @@ pub struct Frame {
 }
 
 /// Renders frames, caching backgrounds.
+///
+/// Backgrounds are generated from a seed ([`Background`]) and cached per
+/// (kind, seed, size) in a [`SceneRenderer`], so a frame costs the instrument's
+/// shading and the sensor model, not the texture synthesis.
 #[derive(Debug, Default)]
 pub struct SceneRenderer {
     raster: Rasterizer,
