@@ -6,8 +6,8 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use kflex_estimate::{SegmentParams, segment};
 use kflex_model::{
-    Background, Camera, FrameParams, Instrument, Intrinsics, Mask, Occlusion, PoseRange,
-    Rasterizer, Roi, SceneRenderer,
+    Background, Camera, FrameParams, Instrument, Intrinsics, Mask, Occlusion, Rasterizer, Roi,
+    SceneRenderer,
 };
 
 #[derive(Debug, Args)]
@@ -73,11 +73,11 @@ pub fn render(args: &RenderArgs) -> Result<()> {
         occlusion,
     };
     let frame = SceneRenderer::new().render(&camera, &shape, &params)?;
-    // the working region: where the joint and gripper can be over the paper's poses
+    // the working region: where the joint and gripper can be over its poses
     let roi = Roi::working(&camera)?;
-    let [lo, hi] = PoseRange::PAPER.theta_deg;
-    let [d_lo, d_hi] = PoseRange::PAPER.translation_mm;
-    if !(lo..=hi).contains(&args.theta) || !(d_lo..=d_hi).contains(&args.d) {
+    let covered = Roi::WORKING_POSES;
+    if !covered.contains(args.theta, args.d) {
+        let ([lo, hi], [d_lo, d_hi]) = (covered.theta_deg, covered.translation_mm);
         println!(
             "note: the working region of interest covers θ in [{lo}, {hi}] deg at d in [{d_lo}, {d_hi}] mm; \
              outside it the region may cut off part of the joint or gripper"

@@ -28,15 +28,27 @@ impl PoseRange {
         theta_deg: [0.0, 50.0],
         translation_mm: [10.0, 10.0],
     };
+
+    /// Whether the pose (bend `theta_deg`, translation `translation_mm`) lies
+    /// in the range, ends included.
+    #[must_use]
+    pub fn contains(&self, theta_deg: f64, translation_mm: f64) -> bool {
+        let [t0, t1] = self.theta_deg;
+        let [d0, d1] = self.translation_mm;
+        (t0..=t1).contains(&theta_deg) && (d0..=d1).contains(&translation_mm)
+    }
 }
 
 impl Roi {
     /// Margin of [`Roi::working`] around the joint and gripper, px of the full frame.
     pub const WORKING_MARGIN_PX: u32 = 8;
 
+    /// The poses [`Roi::working`] covers.
+    pub const WORKING_POSES: PoseRange = PoseRange::PAPER;
+
     /// The default working region of `camera`: [`Roi::for_workspace`] of the
-    /// K-FLEX instrument ([`Instrument::kflex`]) over the paper's poses
-    /// ([`PoseRange::PAPER`]), with [`Roi::WORKING_MARGIN_PX`].
+    /// K-FLEX instrument ([`Instrument::kflex`]) over
+    /// [`Roi::WORKING_POSES`] (the paper's), with [`Roi::WORKING_MARGIN_PX`].
     ///
     /// # Errors
     /// As [`Roi::for_workspace`].
@@ -44,7 +56,7 @@ impl Roi {
         Self::for_workspace(
             camera,
             &Instrument::kflex(),
-            &PoseRange::PAPER,
+            &Self::WORKING_POSES,
             Self::WORKING_MARGIN_PX,
         )
     }
@@ -267,6 +279,10 @@ mod tests {
             Err(ModelError::OutOfRange(e)) => assert_eq!(e.name, "poses.translation_mm[0]"),
             other => panic!("{other:?}"),
         }
+        let paper = PoseRange::PAPER;
+        assert!(paper.contains(0.0, 10.0) && paper.contains(50.0, 10.0));
+        assert!(!paper.contains(-0.1, 10.0) && !paper.contains(30.0, 10.5));
+        assert!(!paper.contains(f64::NAN, 10.0));
         let huge = PoseRange {
             theta_deg: [-1e308, 1e308],
             ..PoseRange::PAPER
