@@ -158,6 +158,38 @@ impl BoucWen {
         Ok(self.output())
     }
 
+    /// The state `z` and its slope `dz/dx` after moving to `x` from the current
+    /// state, without moving. The slope is the ODE's right-hand side at the new
+    /// state (the derivative of the flow along the input); at `x` equal to the
+    /// current input, the mean of the two one-sided slopes.
+    pub(crate) fn trial(&self, x: f64) -> (f64, f64) {
+        let dx = x - self.x;
+        let p = &self.params;
+        if p.gamma == 0.0 && p.n == 1.0 && p.alpha == 0.0 && dx != 0.0 {
+            // Dahl's law (the tendon elements' case), closed form: z relaxes
+            // exponentially toward sign(dx)·A/β, and dz/dx = A − β sign(dx) z
+            let sign = dx.signum();
+            let bound = p.a / p.beta;
+            let z = sign * bound + (self.z - sign * bound) * (-p.beta * dx.abs()).exp();
+            return (z, p.a - p.beta * sign * z);
+        }
+        let z = self.peek(x);
+        let slope = if dx > 0.0 {
+            self.slope(z, 1.0)
+        } else if dx < 0.0 {
+            self.slope(z, -1.0)
+        } else {
+            0.5 * (self.slope(z, 1.0) + self.slope(z, -1.0))
+        };
+        (z, slope)
+    }
+
+    /// Sets input and state directly (a state reached by a history not replayed here).
+    pub(crate) fn set_state(&mut self, x: f64, z: f64) {
+        self.x = x;
+        self.z = z;
+    }
+
     /// The state `z` after moving to `x` from the current state (the current `z`
     /// for a non-finite `x`).
     fn peek(&self, x: f64) -> f64 {
@@ -214,6 +246,11 @@ impl BoucWen {
         let sign = dx.signum();
         let mut s = dx.abs();
         let mut u = sign * z;
+        if p.gamma == 0.0 {
+            // both sides of u = 0 share c = β (Dahl's law): one exponential
+            let u_inf = p.a / p.beta;
+            return sign * (u_inf + (u - u_inf) * (-p.beta * s).exp());
+        }
         if u < 0.0 {
             let c = p.beta - p.gamma; // ≥ 0 by validation
             // distance travelled until u reaches 0
