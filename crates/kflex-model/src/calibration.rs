@@ -15,17 +15,18 @@ impl Default for SheathParams {
     }
 }
 
-/// Fitted tendon-sheath parameters (all free in the fit except the distal run's
-/// stiffness, set for about 50 mm of tendon pair between the sheath and the joint).
+/// Tendon-sheath parameters: physical values from the K-FLEX instrument and
+/// the literature, and the fitted ones (see CALIBRATION.md for which and why).
 pub(crate) const FITTED_SHEATH: SheathParams = SheathParams {
-    friction_coefficient: 0.1615,
-    route_wrap_deg: 4.566,
-    pretension_n: 3.757,
-    tendon_stiffness_n_per_mm: 31.93,
-    coulomb_friction_n: 0.9941,
-    drive_backlash_mm: 0.1267,
-    sheath_coupling_mm_per_rad: 0.0816,
-    distal_stiffness_n_per_mm: 800.0,
+    friction_coefficient: 0.15,
+    route_wrap_deg: 30.0,
+    pretension_n: 3.0,
+    tendon_stiffness_n_per_mm: 10.5,
+    distal_stiffness_n_per_mm: 270.0,
+    drive_backlash_mm: 0.1,
+    presliding_mm: 0.02,
+    elements: 20,
+    sheath_path_mm_per_rad: 0.0,
 };
 
 /// Fitted bending stiffness of one rolling contact, N·mm/rad. The pretension's

@@ -178,64 +178,173 @@ pub(crate) fn external_generalised_force(joint: &JointParams, two_n: usize, thet
 }
 
 /// Moment of the tendon pair on one rolling contact at angle `phi` (rad), N·mm:
-/// `F d_t cos φ − (T_a + T_b)(R − B) sin φ` (virtual work on Eq. 1).
+/// `F d_t cos φ − (T_a + T_b)(R − B) sin φ` (virtual work on Eq. 1:
+/// `T_a ∂w_a/∂φ + T_b ∂w_b/∂φ` with `w = −ΔL` the tendons' pull-in).
 pub(crate) fn contact_moment(geometry: &TendonGeometry, distal: &Distal, phi: f64) -> f64 {
     let (s, c) = phi.sin_cos();
-    distal.force_n * geometry.tendon_offset_mm * c
-        - distal.tension_sum_n * (geometry.r_mm - geometry.b_mm) * s
+    distal.force_n() * geometry.tendon_offset_mm * c
+        - distal.tension_sum_n() * (geometry.r_mm - geometry.b_mm) * s
 }
 
-/// Residual of the generalised-force balance along θ (N·mm/rad), equal contact angles.
+/// Pull-in of the two anchors `(w_a, w_b) = (−ΔL_a(θ), −ΔL_b(θ))`, mm.
+pub(crate) fn anchors_mm(geometry: &TendonGeometry, theta: f64) -> (f64, f64) {
+    let s = geometry.differential_stroke_mm(theta);
+    let c = geometry.common_mode_mm(theta);
+    (s - c, -s - c)
+}
+
+/// Residual of the generalised-force balance along θ (N·mm/rad), equal contact
+/// angles, and its slope, exact for the tendons through their condensed stiffness.
 fn balance(
     geometry: &TendonGeometry,
     joint: &JointParams,
-    sheath: &TendonSheath,
+    sheath: &mut TendonSheath,
     theta: f64,
 ) -> (f64, f64) {
     let two_n = 2.0 * f64::from(geometry.n_segments);
     let phi = theta / two_n;
     let (s, c) = phi.sin_cos();
-    let p = geometry.differential_stroke_mm(theta);
-    let arm = geometry.tendon_offset_mm * c;
-    let distal = sheath.distal(p);
-    let (f, t_sum) = (distal.force_n, distal.tension_sum_n);
-    let rb = geometry.r_mm - geometry.b_mm;
+    let (w_a, w_b) = anchors_mm(geometry, theta);
+    let distal = sheath.solve(w_a, w_b);
+    let (d, rb) = (geometry.tendon_offset_mm, geometry.r_mm - geometry.b_mm);
+    // dw/dθ and d²w/dθ² of each anchor
+    let (wa1, wb1) = (d * c - rb * s, -d * c - rb * s);
+    let (wa2, wb2) = ((-d * s - rb * c) / two_n, (d * s - rb * c) / two_n);
     let k = joint.contact_stiffness_nmm_per_rad;
-    let residual = contact_moment(geometry, &distal, phi) - k * phi
-        + external_generalised_force(joint, two_n as usize, theta);
+    let (ta, tb) = (distal.tension_a_n, distal.tension_b_n);
+    let residual =
+        ta * wa1 + tb * wb1 - k * phi + external_generalised_force(joint, two_n as usize, theta);
     // slope, neglecting the slow variation of the external loads
-    let slope = distal.slope_n_per_mm * arm * arm
-        - f * geometry.tendon_offset_mm * s / two_n
-        - t_sum * rb * c / two_n
+    let slope = -distal.stiffness_a_n_per_mm * wa1 * wa1 - distal.stiffness_b_n_per_mm * wb1 * wb1
+        + ta * wa2
+        + tb * wb2
         - k / two_n;
     (residual, slope)
 }
 
+/// Newton steps the coupled fast path may take before handing over.
+const NEWTON_STEPS: usize = 12;
+/// Largest move per tick the fast path accepts, rad: beyond it the path is
+/// followed step by step so a snap-through cannot be jumped over.
+const NEWTON_REACH_RAD: f64 = 0.05;
+
+/// Anchors, their slopes and curvatures along θ.
+struct Anchors {
+    w: [f64; 2],
+    slope: [f64; 2],
+    curvature: [f64; 2],
+}
+
+fn anchors(geometry: &TendonGeometry, theta: f64) -> Anchors {
+    let two_n = 2.0 * f64::from(geometry.n_segments);
+    let (s, c) = (theta / two_n).sin_cos();
+    let (d, rb) = (geometry.tendon_offset_mm, geometry.r_mm - geometry.b_mm);
+    let (w_a, w_b) = anchors_mm(geometry, theta);
+    Anchors {
+        w: [w_a, w_b],
+        slope: [d * c - rb * s, -d * c - rb * s],
+        curvature: [(-d * s - rb * c) / two_n, (d * s - rb * c) / two_n],
+    }
+}
+
 /// Quasi-static analytic solve: the bend θ (rad) at which the tendons, the
 /// backbone and the external loads balance, within the hard stops, reached
-/// from `theta_guess` (the last tick's angle) by following the net moment
-/// ([`crate::numeric::follow_root`]), to 1e-10 rad (6e-9 deg). Under a tip
-/// load that pushes back along the instrument hard enough to overcome the
-/// joint's stiffness, no equilibrium stays near the last angle and the joint
-/// snaps through to the next one (buckling), as a real one would.
+/// from `theta_last` (the last tick's angle), to 1e-10 rad (6e-9 deg). The
+/// sheath's trial state is left at (or within the tolerance of) that θ;
+/// [`TendonSheath::commit`] solves it there.
+///
+/// First a coupled Newton iteration on the joint's balance and both
+/// tendons' marches at once (three unknowns: θ and the two anchor tensions),
+/// from the last tick's motion continued (`theta_before` is the angle a tick
+/// earlier); it converges in two to four steps. It is accepted when it
+/// converges to a stable balance near the last angle. Otherwise the path is
+/// followed ([`crate::numeric::follow_root`]) with each tendon solved on its
+/// own: under a tip load that pushes back along the instrument hard enough
+/// to overcome the joint's stiffness, no equilibrium stays near the last
+/// angle and the joint snaps through to the next one (buckling), as a real
+/// one would.
 pub(crate) fn solve_analytic(
     geometry: &TendonGeometry,
     joint: &JointParams,
-    sheath: &TendonSheath,
-    theta_guess: f64,
+    sheath: &mut TendonSheath,
+    theta_last: f64,
+    theta_before: f64,
 ) -> f64 {
     let max = joint.max_theta_deg.to_radians();
+    let start = theta_last.clamp(-max, max);
+    // first guess: the last tick's motion continued
+    let guess = (2.0 * theta_last - theta_before)
+        .clamp(
+            start - NEWTON_REACH_RAD / 2.0,
+            start + NEWTON_REACH_RAD / 2.0,
+        )
+        .clamp(-max, max);
+    if let Some(theta) = coupled_newton(geometry, joint, sheath, start, guess, max) {
+        return theta;
+    }
     // follow the path from the last angle: under compressive loads the balance can
     // have several roots, and the joint reaches the first stable one in the
     // direction the net moment turns it
-    crate::numeric::follow_root(
+    let theta = crate::numeric::follow_root(
         |t| balance(geometry, joint, sheath, t),
         -max,
         max,
-        theta_guess,
+        start,
         0.01,
         1e-10,
-    )
+    );
+    balance(geometry, joint, sheath, theta);
+    theta
+}
+
+fn coupled_newton(
+    geometry: &TendonGeometry,
+    joint: &JointParams,
+    sheath: &mut TendonSheath,
+    start: f64,
+    guess: f64,
+    max: f64,
+) -> Option<f64> {
+    let two_n = 2.0 * f64::from(geometry.n_segments);
+    let k = joint.contact_stiffness_nmm_per_rad;
+    let (mut ta, mut tb) = sheath.extrapolated_tensions();
+    let mut theta = guess;
+    for _ in 0..NEWTON_STEPS {
+        let an = anchors(geometry, theta);
+        let (ma, mb) = sheath.march(ta, tb, an.w[0], an.w[1]);
+        let g = ta * an.slope[0] + tb * an.slope[1] - k * theta / two_n
+            + external_generalised_force(joint, two_n as usize, theta);
+        if !(g.is_finite() && ma.by_tension > 0.0 && mb.by_tension > 0.0) {
+            return None;
+        }
+        // eliminate the tensions: ΔT = −(r + r_θ Δθ)/r_T, r_θ = r_w w'
+        let (sa, sb) = (ma.by_anchor / ma.by_tension, mb.by_anchor / mb.by_tension);
+        let g_theta = ta * an.curvature[0] + tb * an.curvature[1] - k / two_n;
+        let slope = g_theta - sa * an.slope[0] * an.slope[0] - sb * an.slope[1] * an.slope[1];
+        if !(slope < 0.0) {
+            return None;
+        }
+        let (ra, rb) = (
+            ma.residual_mm / ma.by_tension,
+            mb.residual_mm / mb.by_tension,
+        );
+        let condensed = g - an.slope[0] * ra - an.slope[1] * rb;
+        let step = -condensed / slope;
+        let next = theta + step;
+        if next.abs() > max || (next - start).abs() > NEWTON_REACH_RAD {
+            return None;
+        }
+        ta -= ra + sa * an.slope[0] * step;
+        tb -= rb + sb * an.slope[1] * step;
+        theta = next;
+        let settled = ma.residual_mm.abs() <= crate::transmission::POSITION_TOL_MM
+            && mb.residual_mm.abs() <= crate::transmission::POSITION_TOL_MM;
+        if step.abs() < 1e-10 && settled {
+            // the last step was below tolerance (commit solves the tendons at θ exactly)
+            return Some(theta);
+        }
+    }
+    None
 }
 
 #[cfg(test)]
@@ -243,31 +352,37 @@ mod tests {
     use super::*;
     use crate::transmission::SheathParams;
 
+    /// The motors at Eq. 1's strokes for `theta_c` (rad).
+    fn advance(sheath: &mut TendonSheath, geometry: &TendonGeometry, theta_c: f64) {
+        sheath
+            .advance(
+                geometry.differential_stroke_mm(theta_c),
+                geometry.common_mode_mm(theta_c),
+            )
+            .unwrap();
+    }
+
     #[test]
     fn balance_holds_at_the_solution() {
         let geometry = TendonGeometry::default();
         let joint = JointParams::default();
         let mut sheath = TendonSheath::new(SheathParams::default(), 90.0).unwrap();
-        sheath
-            .advance(geometry.differential_stroke_mm(0.6))
-            .unwrap();
-        let theta = solve_analytic(&geometry, &joint, &sheath, 0.0);
+        advance(&mut sheath, &geometry, 0.6);
+        let theta = solve_analytic(&geometry, &joint, &mut sheath, 0.0, 0.0);
         assert!(theta > 0.0 && theta < 0.6, "{theta}");
         // a root: the balance changes sign across it
-        assert!(balance(&geometry, &joint, &sheath, theta - 1e-9).0 > 0.0);
-        assert!(balance(&geometry, &joint, &sheath, theta + 1e-9).0 < 0.0);
+        assert!(balance(&geometry, &joint, &mut sheath, theta - 1e-9).0 > 0.0);
+        assert!(balance(&geometry, &joint, &mut sheath, theta + 1e-9).0 < 0.0);
         // the same answer from a far-away start
-        let again = solve_analytic(&geometry, &joint, &sheath, -1.5);
-        assert!((again - theta).abs() < 1e-10);
+        let again = solve_analytic(&geometry, &joint, &mut sheath, -1.5, -1.5);
+        assert!((again - theta).abs() < 1e-9, "{again} vs {theta}");
     }
 
     #[test]
     fn gravity_opposing_the_bend_lowers_it() {
         let geometry = TendonGeometry::default();
         let mut sheath = TendonSheath::new(SheathParams::default(), 0.0).unwrap();
-        sheath
-            .advance(geometry.differential_stroke_mm(0.6))
-            .unwrap();
+        advance(&mut sheath, &geometry, 0.6);
         let none = JointParams {
             gravity_m_per_s2: [0.0; 3],
             ..JointParams::default()
@@ -277,8 +392,8 @@ mod tests {
             tool_mass_g: 50.0,
             ..none
         };
-        let t0 = solve_analytic(&geometry, &none, &sheath, 0.0);
-        let t1 = solve_analytic(&geometry, &heavy, &sheath, 0.0);
+        let t0 = solve_analytic(&geometry, &none, &mut sheath, 0.0, 0.0);
+        let t1 = solve_analytic(&geometry, &heavy, &mut sheath, 0.0, 0.0);
         assert!(t1 < t0 - 1e-3, "{t0} vs {t1}");
     }
 
@@ -292,10 +407,14 @@ mod tests {
             ..JointParams::default()
         };
         let mut sheath = TendonSheath::new(SheathParams::default(), 0.0).unwrap();
-        sheath
-            .advance(geometry.differential_stroke_mm(80f64.to_radians()))
-            .unwrap();
-        let theta = solve_analytic(&geometry, &joint, &sheath, 60f64.to_radians());
+        advance(&mut sheath, &geometry, 80f64.to_radians());
+        let theta = solve_analytic(
+            &geometry,
+            &joint,
+            &mut sheath,
+            60f64.to_radians(),
+            60f64.to_radians(),
+        );
         assert_eq!(theta, joint.max_theta_deg.to_radians());
     }
 }

@@ -220,14 +220,12 @@ impl RapierJoint {
         phis[..n].iter().sum()
     }
 
-    /// Distal differential stroke `p = Σ d_t sin φ_j`, mm.
-    pub fn distal_stroke_mm(&self) -> f64 {
+    /// Pull-in of the two tendon anchors `(w_a, w_b)` for the chain's contact
+    /// angles: `Σ ±d_t sin φ_j − (R − B)(1 − cos φ_j)`, mm (Eq. 1 contact by contact).
+    pub fn anchors_mm(&self) -> (f64, f64) {
         let mut phis = [0.0; crate::joint::MAX_CONTACTS];
         let n = self.read_angles(&mut phis);
-        phis[..n]
-            .iter()
-            .map(|phi| self.geometry.tendon_offset_mm * phi.sin())
-            .sum()
+        anchors_of(&self.geometry, &phis[..n])
     }
 
     /// Internal steps taken since construction.
@@ -236,8 +234,7 @@ impl RapierJoint {
     }
 
     /// Integrates until the chain is at rest under the current tendon state. Returns θ (rad).
-    pub fn settle(&mut self, sheath: &TendonSheath) -> Result<f64> {
-        let d_t = self.geometry.tendon_offset_mm;
+    pub fn settle(&mut self, sheath: &mut TendonSheath) -> Result<f64> {
         let tip_force = v3(self.joint.tip_load_n);
         let tip_local = RVec::new(
             0.0,
@@ -249,8 +246,13 @@ impl RapierJoint {
         for step in 0..self.settings.max_steps_per_tick {
             // current contact angles and the tendon force they imply
             self.read_angles(&mut phis);
-            let p: f64 = phis[..n].iter().map(|phi| d_t * phi.sin()).sum();
-            let distal = sheath.distal(p);
+            let (w_a, w_b) = anchors_of(&self.geometry, &phis[..n]);
+            let distal = sheath.solve(w_a, w_b);
+            if !sheath.converged() {
+                return Err(ModelError::Diverged {
+                    what: "tendon element balance",
+                });
+            }
             for b in &self.links {
                 if let Some(body) = self.world.bodies.get_mut(*b) {
                     body.reset_forces(false);
@@ -307,4 +309,14 @@ impl RapierJoint {
             })
             .unwrap_or(0.0)
     }
+}
+
+/// Anchor pull-ins `(w_a, w_b)` for contact angles `phis` (rad), mm.
+fn anchors_of(geometry: &TendonGeometry, phis: &[f64]) -> (f64, f64) {
+    let rb = geometry.r_mm - geometry.b_mm;
+    phis.iter().fold((0.0, 0.0), |(a, b), phi| {
+        let (s, c) = phi.sin_cos();
+        let (diff, common) = (geometry.tendon_offset_mm * s, rb * (1.0 - c));
+        (a + diff - common, b - diff - common)
+    })
 }

@@ -83,6 +83,6 @@ pub use raster::Rasterizer;
 pub use roi::Roi;
 pub use scene::{Background, Frame, FrameParams, Occlusion, SceneRenderer};
 pub use trajectory::{Sample, Sine, Trajectory, TrajectorySampler};
-pub use transmission::{Distal, SheathParams, TendonSheath, TendonTensions};
+pub use transmission::{Distal, Seating, SheathParams, TendonSheath, TendonTensions};
 pub use working::PoseRange;
 pub use workspace::TranslationParams;

@@ -9,7 +9,7 @@
 /// `lo`, `lo`: the bounds act as stops. The answer is always within `tol` of a
 /// sign change of `f` (or a stop), never the middle of an unresolved bracket.
 pub(crate) fn root_decreasing(
-    f: impl Fn(f64) -> (f64, f64),
+    mut f: impl FnMut(f64) -> (f64, f64),
     lo: f64,
     hi: f64,
     guess: f64,
@@ -59,7 +59,7 @@ pub(crate) fn root_decreasing(
 /// sign changes, then [`root_decreasing`] on that bracket. Returns the bound
 /// reached if there is no sign change before it.
 pub(crate) fn follow_root(
-    f: impl Fn(f64) -> (f64, f64),
+    mut f: impl FnMut(f64) -> (f64, f64),
     lo: f64,
     hi: f64,
     start: f64,
@@ -82,7 +82,7 @@ pub(crate) fn follow_root(
         let (v, _) = f(far);
         if v.signum() != dir || v == 0.0 {
             let (a, b) = if dir > 0.0 { (near, far) } else { (far, near) };
-            return root_decreasing(&f, a, b, 0.5 * (a + b), tol);
+            return root_decreasing(&mut f, a, b, 0.5 * (a + b), tol);
         }
         if far == lo || far == hi {
             return far;

@@ -1,18 +1,19 @@
 //! The testbed plant: command in, actual joint angle (and everything the
 //! tendons did to get there) out.
 
+use rand::Rng;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{ModelError, Result};
-use crate::joint::{JointModelKind, JointParams, solve_analytic};
+use crate::joint::{JointModelKind, JointParams, anchors_mm, solve_analytic};
 #[cfg(feature = "multibody")]
 use crate::joint_rapier::{RapierJoint, RapierSettings};
 use crate::kinematics::TendonGeometry;
 use crate::range::Bounds;
-use crate::transmission::{SheathParams, TendonSheath, TendonTensions};
+use crate::transmission::{Seating, SheathParams, TendonSheath, TendonTensions};
 use crate::workspace::{TranslationParams, check_pose};
 
 /// The two degrees of freedom the paper commands.
@@ -54,6 +55,8 @@ pub struct PlantConfig {
     pub sheath: SheathParams,
     /// Sheath configuration: total bend of the sheath, deg (the paper: 0, 90, 180, 270).
     pub sheath_deg: f64,
+    /// How the tendons sit in their sheaths when the plant starts or resets.
+    pub seating: Seating,
     /// Joint mechanics.
     pub joint: JointParams,
     /// Which joint model computes the angle.
@@ -72,6 +75,7 @@ impl Default for PlantConfig {
             geometry: TendonGeometry::default(),
             sheath: SheathParams::default(),
             sheath_deg: 0.0,
+            seating: Seating::default(),
             joint: JointParams::default(),
             joint_model: JointModelKind::Analytic,
             translation: TranslationParams::default(),
@@ -89,7 +93,7 @@ impl PlantConfig {
     /// checked in this order: the joint's ([`JointParams::validate`]), the
     /// geometry's ([`TendonGeometry::validate`] over `±joint.max_theta_deg`),
     /// the sheath's ([`SheathParams::validate`]), `sheath_deg` outside
-    /// `[0, 3600]` deg, the translation stage's
+    /// `[0, 3600]` deg, the seating's ([`Seating::validate`]), the translation stage's
     /// ([`TranslationParams::validate`]), then, with noise on,
     /// `noise.theta_std_deg` outside `[0, 90]` deg or
     /// `noise.translation_std_mm` outside `[0, 100]` mm.
@@ -99,6 +103,7 @@ impl PlantConfig {
             .validate(self.joint.max_theta_deg.to_radians())?;
         self.sheath.validate()?;
         Bounds::closed(0.0, 3600.0).check("sheath_deg", self.sheath_deg)?;
+        self.seating.validate()?;
         self.translation.validate()?;
         if let Some(n) = self.noise {
             Bounds::closed(0.0, 90.0).check("noise.theta_std_deg", n.theta_std_deg)?;
@@ -107,28 +112,52 @@ impl PlantConfig {
         Ok(())
     }
 
-    /// A copy whose friction and stiffness parameters are scaled by independent
-    /// factors `1 + rel_std · N(0, 1)` (clamped to [0.5, 1.5]): unit-to-unit and
-    /// day-to-day spread for repeated experiments. Deterministic in `seed`.
-    /// The copy is not validated here ([`Plant::new`] does that).
+    /// A copy drawn around this one for a repeated experiment: every physical
+    /// parameter of the transmission and the joint (friction coefficient,
+    /// wraps, pretension, stiffnesses, backlash, pre-sliding, the contacts'
+    /// stiffness) scaled by its own factor `1 + rel_std · N(0, 1)` (clamped
+    /// to `[0.5, 1.5]`): unit-to-unit and day-to-day spread. With
+    /// `rel_std > 0` the tendons also start from their own seating (friction
+    /// states and backlash position drawn uniformly from `[−1, 1]`, see
+    /// [`Seating`]): how the instrument was last moved before the run.
+    /// Deterministic in `seed`. This configuration is checked first, so an
+    /// error names the value as given, not a scaled one.
     ///
     /// # Errors
     /// [`ModelError::OutOfRange`] naming `rel_std` when it is outside `[0, 0.5]`
-    /// (NaN included).
+    /// (NaN included), or the first parameter of this configuration out of
+    /// its range ([`PlantConfig::validate`]).
     pub fn perturbed(&self, seed: u64, rel_std: f64) -> Result<PlantConfig> {
         Bounds::closed(0.0, 0.5).check("rel_std", rel_std)?;
-        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6b66_6c65_7800_0001);
-        let normal = Normal::new(0.0, 1.0).map_err(|_| ModelError::NonFinite {
+        self.validate()?;
+        let mut out = *self;
+        if rel_std == 0.0 {
+            return Ok(out);
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6b66_6c65_7800_0002);
+        let normal = Normal::new(0.0, rel_std).map_err(|_| ModelError::NonFinite {
             name: "rel_std",
             value: rel_std,
         })?;
-        let mut factor = || (1.0 + rel_std * normal.sample(&mut rng)).clamp(0.5, 1.5);
-        let mut out = *self;
-        out.sheath.friction_coefficient *= factor();
-        out.sheath.pretension_n *= factor();
-        out.sheath.tendon_stiffness_n_per_mm *= factor();
-        out.sheath.coulomb_friction_n *= factor();
-        out.joint.contact_stiffness_nmm_per_rad *= factor();
+        let mut scale = |x: &mut f64| *x *= (1.0 + normal.sample(&mut rng)).clamp(0.5, 1.5);
+        let s = &mut out.sheath;
+        scale(&mut s.friction_coefficient);
+        scale(&mut s.route_wrap_deg);
+        scale(&mut s.pretension_n);
+        scale(&mut s.tendon_stiffness_n_per_mm);
+        scale(&mut s.distal_stiffness_n_per_mm);
+        scale(&mut s.drive_backlash_mm);
+        scale(&mut s.presliding_mm);
+        scale(&mut out.joint.contact_stiffness_nmm_per_rad);
+        out.sheath.friction_coefficient = out.sheath.friction_coefficient.min(1.0);
+        out.sheath.drive_backlash_mm = out.sheath.drive_backlash_mm.min(10.0);
+        out.sheath.presliding_mm = out.sheath.presliding_mm.clamp(1e-5, 10.0);
+        out.sheath.route_wrap_deg = out.sheath.route_wrap_deg.min(3600.0);
+        out.seating = Seating {
+            friction_a: rng.random_range(-1.0..=1.0),
+            friction_b: rng.random_range(-1.0..=1.0),
+            backlash: rng.random_range(-1.0..=1.0),
+        };
         Ok(out)
     }
 }
@@ -185,6 +214,8 @@ pub struct Plant {
     rng: ChaCha8Rng,
     noise: Option<(Normal<f64>, Normal<f64>)>,
     state: PlantState,
+    /// θ_a one tick before the last, rad (the solver extrapolates from it).
+    theta_before_rad: f64,
 }
 
 impl std::fmt::Debug for Plant {
@@ -224,6 +255,7 @@ impl Plant {
             rng: ChaCha8Rng::seed_from_u64(config.seed),
             noise,
             state: PlantState::default(),
+            theta_before_rad: 0.0,
         };
         plant.reset()?;
         Ok(plant)
@@ -267,10 +299,11 @@ impl Plant {
             )?)),
             _ => JointSolver::Analytic,
         };
-        self.sheath.reset(0.0);
+        self.sheath.reset(&self.config.seating)?;
+        let distal = self.sheath.distal(0.0, 0.0)?;
         self.joint = joint;
         self.rng = ChaCha8Rng::seed_from_u64(self.config.seed);
-        let t0 = self.config.sheath.pretension_n;
+        self.theta_before_rad = 0.0;
         let translation = self.config.translation.min_mm;
         self.state = PlantState {
             command: Command {
@@ -279,12 +312,9 @@ impl Plant {
             },
             translation_mm: translation,
             translation_measured_mm: translation,
-            tensions: TendonTensions {
-                a_distal_n: t0,
-                b_distal_n: t0,
-                a_proximal_n: t0,
-                b_proximal_n: t0,
-            },
+            differential_force_n: distal.force_n(),
+            tensions: self.sheath.tensions(&distal),
+            friction_state: self.sheath.friction_state(),
             ..PlantState::default()
         };
         Ok(())
@@ -364,46 +394,51 @@ impl Plant {
         self.check_command(&command)?;
         let geometry = self.config.geometry;
         let theta_c = command.theta_c_deg.to_radians();
-        let q = geometry.differential_stroke_mm(theta_c);
-        let sheath_before = self.sheath.clone();
-        self.sheath.advance(q)?;
+        self.sheath.advance(
+            geometry.differential_stroke_mm(theta_c),
+            geometry.common_mode_mm(theta_c),
+        )?;
         let theta = match &mut self.joint {
             JointSolver::Analytic => solve_analytic(
                 &geometry,
                 &self.config.joint,
-                &self.sheath,
+                &mut self.sheath,
                 self.state.theta_a_deg.to_radians(),
+                self.theta_before_rad,
             ),
             #[cfg(feature = "multibody")]
-            JointSolver::Rapier(j) => match j.settle(&self.sheath) {
+            JointSolver::Rapier(j) => match j.settle(&mut self.sheath) {
                 Ok(t) => t,
                 Err(e) => {
-                    self.sheath = sheath_before;
+                    self.sheath.discard();
                     return Err(e);
                 }
             },
         };
         if !theta.is_finite() {
-            self.sheath = sheath_before;
+            self.sheath.discard();
             return Err(ModelError::Diverged {
                 what: "joint angle",
             });
         }
-        // the joint has answered: the friction state moves to where it settled
-        let p = match &self.joint {
-            JointSolver::Analytic => geometry.differential_stroke_mm(theta),
+        // the joint has answered: the tendons and their friction move to where it settled
+        let (w_a, w_b) = match &self.joint {
+            JointSolver::Analytic => anchors_mm(&geometry, theta),
             #[cfg(feature = "multibody")]
-            JointSolver::Rapier(j) => j.distal_stroke_mm(),
+            JointSolver::Rapier(j) => j.anchors_mm(),
         };
-        if let Err(e) = self.sheath.commit(p) {
-            self.sheath = sheath_before;
-            return Err(e);
-        }
+        let distal = match self.sheath.commit(w_a, w_b) {
+            Ok(d) => d,
+            Err(e) => {
+                self.sheath.discard();
+                return Err(e);
+            }
+        };
         // translation: rate-limited stage
         let max_move = self.config.translation.max_speed_mm_per_s * dt_s;
         let translation = self.state.translation_mm
             + (command.translation_mm - self.state.translation_mm).clamp(-max_move, max_move);
-        let force = self.sheath.distal_force_n(p);
+        self.theta_before_rad = self.state.theta_a_deg.to_radians();
         let theta_a_deg = theta.to_degrees();
         let (noise_theta, noise_translation) = match &self.noise {
             Some((nt, nd)) => (nt.sample(&mut self.rng), nd.sample(&mut self.rng)),
@@ -420,8 +455,8 @@ impl Plant {
             motor_stroke_b_mm: -geometry.delta_l_b_mm(theta_c),
             distal_stroke_a_mm: -geometry.delta_l_a_mm(theta),
             distal_stroke_b_mm: -geometry.delta_l_b_mm(theta),
-            differential_force_n: force,
-            tensions: self.sheath.tensions(force),
+            differential_force_n: distal.force_n(),
+            tensions: self.sheath.tensions(&distal),
             friction_state: self.sheath.friction_state(),
         };
         Ok(self.state)
