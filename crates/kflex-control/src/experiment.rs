@@ -64,6 +64,8 @@ pub struct RunMetrics {
     pub max_hysteresis_deg: f64,
     /// max e − min e.
     pub error_peak_to_peak_deg: f64,
+    /// max θ_d − max θ_a.
+    pub peak_loss_deg: f64,
 }
 
 impl Trace {
@@ -87,6 +89,7 @@ impl Trace {
                 &self.theta_d_deg,
                 &self.theta_a_measured_deg,
             )?,
+            peak_loss_deg: metrics::peak_loss(&self.theta_d_deg, &self.theta_a_measured_deg)?,
         })
     }
 }
@@ -217,6 +220,8 @@ pub struct GridRow {
     pub max_hysteresis_deg: MeanStd,
     /// Error peak-to-peak, deg.
     pub error_peak_to_peak_deg: MeanStd,
+    /// Peak loss, deg.
+    pub peak_loss_deg: MeanStd,
     /// Per-repeat metrics, in seed order.
     pub runs: Vec<RunMetrics>,
     /// The seed of each repeat.
@@ -229,9 +234,10 @@ impl OpenLoopGrid {
     /// # Errors
     /// Stops at the first failure:
     /// * [`ControlError::OutOfRange`] naming `repeats` when it is outside
-    ///   `[1, 1000]`; [`ControlError::NotEnoughData`] for no `sheaths_deg`;
-    /// * [`ControlError::Model`] naming `rel_std` for a `spread` above 0.5
-    ///   ([`PlantConfig::perturbed`]), or the first parameter of a run's plant
+    ///   `[1, 1000]` or `spread` outside `[0, 0.5]` (NaN included);
+    ///   [`ControlError::NotEnoughData`] for no `sheaths_deg`;
+    /// * [`ControlError::Model`] naming the first parameter of the nominal
+    ///   plant out of its range ([`PlantConfig::perturbed`]), or of a run's plant
     ///   out of its range ([`Plant::new`]), e.g. a sheath angle outside
     ///   `[0, 3600]` deg or a noise level;
     /// * as [`OpenLoopScenario::run`] and [`Trace::metrics`] for each run.
@@ -261,6 +267,7 @@ impl OpenLoopGrid {
     /// ```
     pub fn run(&self) -> Result<Vec<GridRow>> {
         Bounds::closed(1.0, 1000.0).check("repeats", f64::from(self.repeats))?;
+        Bounds::closed(0.0, 0.5).check("spread", self.spread)?;
         if self.sheaths_deg.is_empty() {
             return Err(ControlError::NotEnoughData {
                 metric: "grid",
@@ -280,11 +287,7 @@ impl OpenLoopGrid {
             .collect();
         let mut runs = Vec::with_capacity(seeds.len());
         for &seed in &seeds {
-            let mut config = if self.spread > 0.0 {
-                self.plant.perturbed(seed, self.spread)?
-            } else {
-                self.plant
-            };
+            let mut config = self.plant.perturbed(seed, self.spread)?;
             config.sheath_deg = sheath_deg;
             config.noise = self.noise;
             config.seed = seed;
@@ -298,6 +301,7 @@ impl OpenLoopGrid {
             rmse_deg: pick(|m| m.rmse_deg)?,
             max_hysteresis_deg: pick(|m| m.max_hysteresis_deg)?,
             error_peak_to_peak_deg: pick(|m| m.error_peak_to_peak_deg)?,
+            peak_loss_deg: pick(|m| m.peak_loss_deg)?,
             runs,
             seeds,
         })

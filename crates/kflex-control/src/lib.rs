@@ -20,4 +20,4 @@ mod metrics;
 
 pub use error::{ControlError, Result};
 pub use experiment::{GridRow, OpenLoopGrid, OpenLoopScenario, RunMetrics, Trace};
-pub use metrics::{LOOP_BIN_DEG, MeanStd, error_peak_to_peak, loop_width, rmse};
+pub use metrics::{LOOP_BIN_DEG, MeanStd, error_peak_to_peak, loop_width, peak_loss, rmse};

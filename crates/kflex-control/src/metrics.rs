@@ -39,6 +39,20 @@ pub fn error_peak_to_peak(desired: &[f64], actual: &[f64]) -> Result<f64> {
     Ok(hi - lo)
 }
 
+/// Peak loss `max desired − max actual`: how far short of the command's
+/// peak the output's peak falls (a third reading of the paper's "maximum
+/// hysteresis size", reported beside the loop width).
+///
+/// # Errors
+/// [`ControlError::NotEnoughData`] when the series are empty or of unequal
+/// lengths; [`ControlError::NonFiniteSample`] for the first NaN or infinite
+/// sample, indexed into `desired` followed by `actual`.
+pub fn peak_loss(desired: &[f64], actual: &[f64]) -> Result<f64> {
+    check_pair("peak_loss", desired, actual)?;
+    let max = |v: &[f64]| v.iter().copied().fold(f64::MIN, f64::max);
+    Ok(max(desired) - max(actual))
+}
+
 /// Hysteresis loop width (kflex's reading of the paper's "maximum hysteresis
 /// size"), deg: the largest gap, at equal command, between the mean output on
 /// the falling branch and on the rising branch, with the samples binned by
