@@ -161,10 +161,11 @@ impl BoucWen {
     }
 
     /// The state `z` after moving to `x` from the current state (the current `z`
-    /// for a non-finite `x`).
+    /// for a non-finite `x`). Between finite inputs `dx` may still overflow to
+    /// ±∞ (from −1e308 to 1e308): an infinite travel, which saturates.
     fn peek(&self, x: f64) -> f64 {
         let dx = x - self.x;
-        if dx == 0.0 || !dx.is_finite() {
+        if dx == 0.0 || !x.is_finite() {
             self.z
         } else if self.params.n == 1.0 {
             self.exact_n1(self.z, dx)
@@ -505,6 +506,18 @@ mod tests {
         assert!((bw.advance(1e9).unwrap() - bound).abs() < 1e-9);
         assert!((bw.advance(-1e9).unwrap() + bound).abs() < 1e-9);
         assert!((bw.advance(1e4).unwrap() - bound).abs() < 1e-9);
+    }
+
+    #[test]
+    fn an_increment_that_overflows_still_saturates() {
+        // x − x_prev = 2e308 overflows to ∞ though both inputs are finite
+        for p in [negative_gamma(), params_set()[0]] {
+            let mut bw = BoucWen::new(p, -1e308).unwrap();
+            bw.advance(1e308).unwrap();
+            assert_eq!(bw.z(), p.z_bound(), "{p:?}");
+            bw.advance(-1e308).unwrap();
+            assert_eq!(bw.z(), -p.z_bound(), "{p:?}");
+        }
     }
 
     #[test]
