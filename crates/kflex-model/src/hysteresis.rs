@@ -433,6 +433,11 @@ mod tests {
         // the message names the bound in scientific notation, not 309 digits
         let msg = Play::new(-1.0, 0.0).unwrap_err().to_string();
         assert!(msg.ends_with("[0, 1.7976931348623157e308]"), "{msg}");
+        // and so does the message for a half-width too large for a float
+        assert_eq!(
+            Play::new(f64::INFINITY, 0.0).unwrap_err().to_string(),
+            "play.half_width = inf is out of range: must be in [0, 1.7976931348623157e308]"
+        );
     }
 
     #[test]

@@ -224,6 +224,16 @@ mod tests {
     #[test]
     fn unreachable_length_is_an_error() {
         let g = TendonGeometry::default();
+        // a huge length prints in scientific notation, not 301 digits
+        let msg = g
+            .theta_rad_from_delta_l_a(-1e300, MAX)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.starts_with("tendon length change -1e300 mm is not reachable: reachable range ["),
+            "{msg}"
+        );
+        assert!(msg.len() < 120, "{msg}");
         assert!(matches!(
             g.theta_rad_from_delta_l_a(100.0, MAX),
             Err(ModelError::Unreachable { .. })
