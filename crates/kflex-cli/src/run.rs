@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
-use kflex_control::{GridRow, OpenLoopGrid, OpenLoopScenario};
+use kflex_control::{ControlError, GridRow, OpenLoopGrid, OpenLoopScenario};
 use kflex_model::{AuroraNoise, JointModelKind, PlantConfig};
 use serde::Serialize;
 
@@ -207,7 +207,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         spread: args.spread,
         noise: (!args.no_noise).then(AuroraNoise::default),
     };
-    let rows = grid.run().context("running the experiment")?;
+    let rows = grid.run().map_err(|e| explain(args, e))?;
     let records = rows
         .iter()
         .map(|row| record(args, row))
@@ -218,6 +218,45 @@ pub fn run(args: &RunArgs) -> Result<()> {
         println!("\nwrote {}", path.display());
     }
     Ok(())
+}
+
+/// The experiment's error, said in terms of the flag behind it where there is one.
+fn explain(args: &RunArgs, err: ControlError) -> anyhow::Error {
+    let flag = match &err {
+        // a trace too short for the metrics
+        ControlError::NotEnoughData {
+            metric: "rmse" | "loop_width" | "error_peak_to_peak",
+            ..
+        } => Some(if args.periods < 1.0 {
+            format!(
+                "--periods {} is too short for a hysteresis loop (the command must rise and fall over the same angles): use --periods 1 or more",
+                num(args.periods)
+            )
+        } else {
+            let period_s = OpenLoopScenario::default().period_s;
+            let samples = (args.periods * period_s / args.dt).round();
+            format!(
+                "--dt {} s is too coarse for a hysteresis loop ({samples} sample{} over --periods {} of {period_s:.2} s): use a --dt well below the period, e.g. the default 0.01",
+                num(args.dt),
+                if samples == 1.0 { "" } else { "s" },
+                num(args.periods)
+            )
+        }),
+        _ => err.range().and_then(|r| match r.name {
+            "periods" => Some(format!("--periods {}", num(args.periods))),
+            "dt_s" => Some(format!("--dt {}", num(args.dt))),
+            "periods * period_s / dt_s" => Some(format!(
+                "--periods {} at --dt {} s asks for too many samples",
+                num(args.periods),
+                num(args.dt)
+            )),
+            "repeats" => Some(format!("--repeats {}", args.repeats)),
+            "sheath_deg" => Some(format!("--sheath {}", num(r.value))),
+            "rel_std" => Some(format!("--spread {}", num(args.spread))),
+            _ => None,
+        }),
+    };
+    anyhow::Error::new(err).context(flag.unwrap_or_else(|| "running the experiment".to_owned()))
 }
 
 fn record(args: &RunArgs, row: &GridRow) -> Result<Record> {

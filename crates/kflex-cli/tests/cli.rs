@@ -401,3 +401,36 @@ fn flags_that_override_the_config_file_say_so() {
     let stdout = stdout_of(&short_run(&["--config", config.to_str().unwrap()]));
     assert!(!stdout.contains("note:"), "{stdout}");
 }
+
+#[test]
+fn too_short_or_too_coarse_runs_name_the_flag() {
+    for (args, needles) in [
+        (
+            &["--periods", "0.01"][..],
+            &[
+                "--periods 0.01",
+                "too short for a hysteresis loop",
+                "--periods 1 or more",
+            ][..],
+        ),
+        // so short that no sample is left
+        (&["--periods", "0.0001"][..], &["--periods 0.0001"][..]),
+        (
+            &["--periods", "1", "--dt", "9"][..],
+            &["--dt 9", "too coarse"][..],
+        ),
+        (&["--dt", "0"][..], &["--dt 0", "dt_s"][..]),
+        (&["--dt", "11"][..], &["--dt 11"][..]),
+        (
+            &["--dt", "1e-9"][..],
+            &["--dt 1e-9", "too many samples"][..],
+        ),
+        (&["--dt", "inf"][..], &["--dt inf"][..]),
+    ] {
+        let mut all = vec!["run", "--repeats", "1", "--sheath", "0"];
+        all.extend_from_slice(args);
+        for needle in needles {
+            assert_refused(&all, needle);
+        }
+    }
+}
