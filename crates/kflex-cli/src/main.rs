@@ -1,13 +1,14 @@
 //! `kflex-cli`: reproduce and extend the seed paper's experiments on the kflex testbed.
 #![warn(missing_docs)]
 
+mod config;
 mod paper;
 mod render;
 mod run;
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 /// kflex: hysteresis compensation with learning-based hybrid joint-angle
 /// estimation for tendon-driven flexible surgery robots, on a simulated testbed.
@@ -27,9 +28,15 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let matches = Cli::command().get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let result = match cli.command {
-        Command::Run(args) => run::run(&args),
+        Command::Run(mut args) => {
+            if let Some(run_matches) = matches.subcommand_matches("run") {
+                args.note_given(run_matches);
+            }
+            run::run(&args)
+        }
         Command::Render(args) => render::render(&args),
     };
     match result {

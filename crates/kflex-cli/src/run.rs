@@ -4,12 +4,13 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, ValueEnum};
-use kflex_control::{GridRow, OpenLoopGrid, OpenLoopScenario};
+use clap::parser::ValueSource;
+use clap::{ArgMatches, Args, ValueEnum};
+use kflex_control::{ControlError, GridRow, OpenLoopGrid, OpenLoopScenario};
 use kflex_model::{AuroraNoise, JointModelKind, PlantConfig};
 use serde::Serialize;
 
-use crate::paper;
+use crate::{config, paper};
 
 /// Which joint-angle estimator closes the loop.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
@@ -62,12 +63,93 @@ pub struct RunArgs {
     /// Joint model of the plant.
     #[arg(long, value_enum, default_value = "analytic")]
     joint: JointArg,
-    /// Plant configuration (JSON, fields of kflex_model::PlantConfig; missing fields take defaults).
-    #[arg(long)]
+    /// Plant configuration, TOML or JSON (by extension .toml or .json, else by
+    /// content): fields of kflex_model::PlantConfig, missing fields take
+    /// defaults. --sheath, --joint, --seed and the noise (--no-noise) replace
+    /// the file's sheath_deg, joint_model, seed and noise; the run says so.
+    #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Write DIR/results.json.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// The flags above given on the command line (not defaulted), by id.
+    #[arg(skip)]
+    given: Vec<&'static str>,
+}
+
+impl RunArgs {
+    /// The flags that replace a [`PlantConfig`] field: their ids.
+    const OVERRIDING: [&'static str; 4] = ["sheath", "joint", "seed", "no_noise"];
+
+    /// Records which of the overriding flags `matches` (this subcommand's) got
+    /// from the command line, for the run's notes.
+    pub fn note_given(&mut self, matches: &ArgMatches) {
+        self.given = Self::OVERRIDING
+            .into_iter()
+            .filter(|id| matches.value_source(id) == Some(ValueSource::CommandLine))
+            .collect();
+    }
+
+    /// `--flag value`, with " (the default)" unless the flag was given.
+    fn flag(&self, id: &str, shown: String) -> String {
+        if self.given.contains(&id) {
+            shown
+        } else {
+            format!("{shown} (the default)")
+        }
+    }
+
+    /// One note per field of the configuration file that a flag replaces.
+    fn override_notes(&self, path: &Path, file: &config::ConfigFile) -> Vec<String> {
+        let sheaths = self
+            .sheath
+            .iter()
+            .map(|&s| num(s))
+            .collect::<Vec<_>>()
+            .join(",");
+        let joint = match self.joint {
+            JointArg::Analytic => "analytic",
+            JointArg::Rapier => "rapier",
+        };
+        let noise = if self.no_noise {
+            "--no-noise".to_owned()
+        } else {
+            "the Aurora-like noise (the default; --no-noise for none)".to_owned()
+        };
+        [
+            (
+                "sheath_deg",
+                self.flag("sheath", format!("--sheath {sheaths}")),
+            ),
+            (
+                "joint_model",
+                self.flag("joint", format!("--joint {joint}")),
+            ),
+            ("seed", self.flag("seed", format!("--seed {}", self.seed))),
+            ("noise", noise),
+        ]
+        .into_iter()
+        .filter_map(|(field, by)| {
+            file.fields.get(field).map(|value| {
+                format!(
+                    "note: {by} overrides {field} = {value} from {}",
+                    path.display()
+                )
+            })
+        })
+        .collect()
+    }
+}
+
+/// A number for a message: plain for ordinary magnitudes, scientific for huge
+/// and tiny ones (as kflex-model's range errors).
+fn num(v: f64) -> String {
+    let a = v.abs();
+    if v.is_finite() && a != 0.0 && !(1e-6..1e15).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 /// One row of `results.json`. Field names are stable: later estimators extend, never rename.
@@ -100,14 +182,13 @@ pub fn run(args: &RunArgs) -> Result<()> {
     if args.sheath.is_empty() {
         bail!("--sheath needs at least one angle");
     }
-    let mut plant = match &args.config {
+    let (mut plant, notes) = match &args.config {
         Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading {}", path.display()))?;
-            serde_json::from_str::<PlantConfig>(&text)
-                .with_context(|| format!("parsing {}", path.display()))?
+            let file = config::load(path)?;
+            let notes = args.override_notes(path, &file);
+            (file.config, notes)
         }
-        None => PlantConfig::default(),
+        None => (PlantConfig::default(), Vec::new()),
     };
     plant.joint_model = match args.joint {
         JointArg::Analytic => JointModelKind::Analytic,
@@ -126,17 +207,56 @@ pub fn run(args: &RunArgs) -> Result<()> {
         spread: args.spread,
         noise: (!args.no_noise).then(AuroraNoise::default),
     };
-    let rows = grid.run().context("running the experiment")?;
+    let rows = grid.run().map_err(|e| explain(args, e))?;
     let records = rows
         .iter()
         .map(|row| record(args, row))
         .collect::<Result<Vec<_>>>()?;
-    print_table(args, &records);
+    print_table(args, &notes, &records);
     if let Some(dir) = &args.out {
         let path = write_results(dir, &records)?;
         println!("\nwrote {}", path.display());
     }
     Ok(())
+}
+
+/// The experiment's error, said in terms of the flag behind it where there is one.
+fn explain(args: &RunArgs, err: ControlError) -> anyhow::Error {
+    let flag = match &err {
+        // a trace too short for the metrics
+        ControlError::NotEnoughData {
+            metric: "rmse" | "loop_width" | "error_peak_to_peak",
+            ..
+        } => Some(if args.periods < 1.0 {
+            format!(
+                "--periods {} is too short for a hysteresis loop (the command must rise and fall over the same angles): use --periods 1 or more",
+                num(args.periods)
+            )
+        } else {
+            let period_s = OpenLoopScenario::default().period_s;
+            let samples = (args.periods * period_s / args.dt).round();
+            format!(
+                "--dt {} s is too coarse for a hysteresis loop ({samples} sample{} over --periods {} of {period_s:.2} s): use a --dt well below the period, e.g. the default 0.01",
+                num(args.dt),
+                if samples == 1.0 { "" } else { "s" },
+                num(args.periods)
+            )
+        }),
+        _ => err.range().and_then(|r| match r.name {
+            "periods" => Some(format!("--periods {}", num(args.periods))),
+            "dt_s" => Some(format!("--dt {}", num(args.dt))),
+            "periods * period_s / dt_s" => Some(format!(
+                "--periods {} at --dt {} s asks for too many samples",
+                num(args.periods),
+                num(args.dt)
+            )),
+            "repeats" => Some(format!("--repeats {}", args.repeats)),
+            "sheath_deg" => Some(format!("--sheath {}", num(r.value))),
+            "rel_std" => Some(format!("--spread {}", num(args.spread))),
+            _ => None,
+        }),
+    };
+    anyhow::Error::new(err).context(flag.unwrap_or_else(|| "running the experiment".to_owned()))
 }
 
 fn record(args: &RunArgs, row: &GridRow) -> Result<Record> {
@@ -175,7 +295,7 @@ fn paper_pm(mean: Option<f64>, std: Option<f64>) -> String {
     }
 }
 
-fn print_table(args: &RunArgs, records: &[Record]) {
+fn print_table(args: &RunArgs, notes: &[String], records: &[Record]) {
     let seeds_last = args
         .seed
         .wrapping_add(u64::from(args.repeats.saturating_sub(1)));
@@ -193,6 +313,9 @@ fn print_table(args: &RunArgs, records: &[Record]) {
             "Aurora-like measurement"
         }
     );
+    for note in notes {
+        println!("{note}");
+    }
     println!(
         "Paper: Baek et al., RA-L 2020, Table IX ('None' row). Maximum hysteresis = loop width (see docs).\n"
     );

@@ -241,3 +241,196 @@ fn render_writes_the_pngs_and_rejects_bad_input() {
         assert_refused(&args, needle);
     }
 }
+
+/// A short run: one period, one repeat, one sheath angle, plus `args`.
+fn short_run(args: &[&str]) -> Output {
+    let mut all = vec!["run", "--periods", "1", "--repeats", "1", "--sheath", "0"];
+    all.extend_from_slice(args);
+    kflex(&all)
+}
+
+fn stdout_of(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn config_file_is_toml_or_json_by_extension_or_content() {
+    let dir = scratch("formats");
+    std::fs::create_dir_all(&dir).unwrap();
+    let toml = "seed = 7\n\n[joint]\ncontact_stiffness_nmm_per_rad = 500.0\n\n[geometry]\nn_segments = 2\n";
+    let json = r#"{"seed": 7, "joint": {"contact_stiffness_nmm_per_rad": 500.0}, "geometry": {"n_segments": 2}}"#;
+    let mut rmse = Vec::new();
+    for (name, text) in [
+        ("plant.toml", toml),
+        ("plant.json", json),
+        ("plant-toml.cfg", toml), // by content
+        ("plant-json.cfg", json),
+        ("default.toml", ""), // an empty file: every field its default
+    ] {
+        let config = dir.join(name);
+        std::fs::write(&config, text).unwrap();
+        let out_dir = dir.join(format!("out-{name}"));
+        stdout_of(&short_run(&[
+            "--no-noise",
+            "--spread",
+            "0",
+            "--config",
+            config.to_str().unwrap(),
+            "--out",
+            out_dir.to_str().unwrap(),
+        ]));
+        rmse.push(results(&out_dir)[0]["rmse_deg"].as_f64().unwrap());
+    }
+    // the four spellings of one configuration agree, and it is not the default
+    assert!(rmse[..4].iter().all(|&r| r == rmse[0]), "{rmse:?}");
+    assert_ne!(rmse[0], rmse[4], "the stiffness was read: {rmse:?}");
+}
+
+#[test]
+fn config_errors_name_the_file_the_line_and_the_field() {
+    let dir = scratch("config-errors");
+    std::fs::create_dir_all(&dir).unwrap();
+    for (name, text, needles) in [
+        (
+            "typo.toml",
+            "seed = 7\nfrictoin_coefficient = 0.1\n",
+            &[
+                "typo.toml",
+                "line 2",
+                "unknown field `frictoin_coefficient`",
+            ][..],
+        ),
+        (
+            "type.toml",
+            "seed = 7\n\n[joint]\ncontact_stiffness_nmm_per_rad = \"stiff\"\n",
+            &[
+                "type.toml",
+                "line 4",
+                "field `joint.contact_stiffness_nmm_per_rad`",
+                "invalid type",
+            ][..],
+        ),
+        (
+            "type.json",
+            "{\"seed\": 7,\n \"geometry\": {\"n_segments\": \"two\"}}",
+            &[
+                "type.json",
+                "line 2",
+                "field `geometry.n_segments`",
+                "invalid type",
+            ][..],
+        ),
+        (
+            "typo.json",
+            "{\"seed\": 7,\n\n \"frictoin_coefficient\": 0.1}",
+            &[
+                "typo.json",
+                "line 3",
+                "unknown field `frictoin_coefficient`",
+            ][..],
+        ),
+        (
+            "syntax.toml",
+            "seed = 7\nsheath_deg = \n",
+            &["syntax.toml", "line 2"][..],
+        ),
+        (
+            "syntax.json",
+            "{\"seed\": 7,\n}",
+            &["syntax.json", "line 2"][..],
+        ),
+    ] {
+        let config = dir.join(name);
+        std::fs::write(&config, text).unwrap();
+        for needle in needles {
+            assert_refused(&["run", "--config", config.to_str().unwrap()], needle);
+        }
+    }
+}
+
+#[test]
+fn flags_that_override_the_config_file_say_so() {
+    let dir = scratch("overrides");
+    std::fs::create_dir_all(&dir).unwrap();
+    let config = dir.join("plant.toml");
+    std::fs::write(
+        &config,
+        "sheath_deg = 45\nseed = 7\njoint_model = \"analytic\"\n",
+    )
+    .unwrap();
+    let path = config.to_str().unwrap();
+    let stdout = stdout_of(&short_run(&["--config", path]));
+    for note in [
+        format!("note: --sheath 0 overrides sheath_deg = 45 from {path}"),
+        format!("note: --seed 2020 (the default) overrides seed = 7 from {path}"),
+        format!(
+            "note: --joint analytic (the default) overrides joint_model = \"analytic\" from {path}"
+        ),
+    ] {
+        assert!(stdout.contains(&note), "{note}:\n{stdout}");
+    }
+    // the notes are in the header, before the table
+    assert!(stdout.find("note:") < stdout.find("RMSE"), "{stdout}");
+    // given flags are not called defaults
+    let stdout = stdout_of(&short_run(&["--config", path, "--seed", "3"]));
+    assert!(
+        stdout.contains(&format!("note: --seed 3 overrides seed = 7 from {path}")),
+        "{stdout}"
+    );
+    // JSON too, and the noise
+    let config = dir.join("plant.json");
+    std::fs::write(&config, r#"{"sheath_deg": 45, "noise": null}"#).unwrap();
+    let path = config.to_str().unwrap();
+    let stdout = stdout_of(&short_run(&["--config", path, "--no-noise"]));
+    assert!(
+        stdout.contains(&format!(
+            "note: --sheath 0 overrides sheath_deg = 45 from {path}"
+        )) && stdout.contains(&format!(
+            "note: --no-noise overrides noise = null from {path}"
+        )),
+        "{stdout}"
+    );
+    // fields no flag replaces: no notes
+    let config = dir.join("quiet.toml");
+    std::fs::write(&config, "[geometry]\nn_segments = 2\n").unwrap();
+    let stdout = stdout_of(&short_run(&["--config", config.to_str().unwrap()]));
+    assert!(!stdout.contains("note:"), "{stdout}");
+}
+
+#[test]
+fn too_short_or_too_coarse_runs_name_the_flag() {
+    for (args, needles) in [
+        (
+            &["--periods", "0.01"][..],
+            &[
+                "--periods 0.01",
+                "too short for a hysteresis loop",
+                "--periods 1 or more",
+            ][..],
+        ),
+        // so short that no sample is left
+        (&["--periods", "0.0001"][..], &["--periods 0.0001"][..]),
+        (
+            &["--periods", "1", "--dt", "9"][..],
+            &["--dt 9", "too coarse"][..],
+        ),
+        (&["--dt", "0"][..], &["--dt 0", "dt_s"][..]),
+        (&["--dt", "11"][..], &["--dt 11"][..]),
+        (
+            &["--dt", "1e-9"][..],
+            &["--dt 1e-9", "too many samples"][..],
+        ),
+        (&["--dt", "inf"][..], &["--dt inf"][..]),
+    ] {
+        let mut all = vec!["run", "--repeats", "1", "--sheath", "0"];
+        all.extend_from_slice(args);
+        for needle in needles {
+            assert_refused(&all, needle);
+        }
+    }
+}

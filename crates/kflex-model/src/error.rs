@@ -30,7 +30,10 @@ pub enum ModelError {
     OutOfWorkspace(RangeError),
     /// A tendon length change that no joint angle in the mechanical range produces.
     #[error(
-        "tendon length change {delta_l_mm} mm is not reachable: reachable range [{min_mm}, {max_mm}] mm"
+        "tendon length change {} mm is not reachable: reachable range [{}, {}] mm",
+        Num(*.delta_l_mm),
+        Num(*.min_mm),
+        Num(*.max_mm)
     )]
     Unreachable {
         /// The requested length change, mm.

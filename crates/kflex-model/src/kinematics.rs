@@ -54,7 +54,8 @@ impl TendonGeometry {
     /// # Errors
     /// [`ModelError::OutOfRange`] naming the first field out of its range
     /// (`n_segments` outside `[1, 16]`, `r_mm` outside `(0, 100)` mm, `b_mm`
-    /// outside `[0, r_mm]`, `tendon_offset_mm` outside `(0, 100)` mm); when
+    /// outside `[0, r_mm)` mm (`R − B` divides in the monotonicity limit),
+    /// `tendon_offset_mm` outside `(0, 100)` mm); when
     /// Eq. 1 is not monotone over `±max_theta_rad`, one named
     /// `max_theta_deg` (Eq. 1 must be monotone over the joint's range) that
     /// carries `max_theta_rad` in degrees and, as its bounds, the range this
@@ -62,7 +63,7 @@ impl TendonGeometry {
     pub fn validate(&self, max_theta_rad: f64) -> Result<()> {
         Bounds::closed(1.0, 16.0).check("n_segments", f64::from(self.n_segments))?;
         Bounds::open(0.0, 100.0).check("r_mm", self.r_mm)?;
-        Bounds::closed(0.0, self.r_mm).check("b_mm", self.b_mm)?;
+        Bounds::closed_open(0.0, self.r_mm).check("b_mm", self.b_mm)?;
         Bounds::open(0.0, 100.0).check("tendon_offset_mm", self.tendon_offset_mm)?;
         let phi_max = max_theta_rad / self.two_n();
         let limit = (self.tendon_offset_mm / (self.r_mm - self.b_mm)).atan();
@@ -219,11 +220,45 @@ mod tests {
         };
         let e = expect_range(g.validate(MAX), "b_mm");
         assert_eq!((e.value, e.bounds.max), (4.0, 3.0));
+        // B = R leaves R − B = 0 to divide by: refused, the bound open
+        let g = TendonGeometry {
+            b_mm: 3.0,
+            ..Default::default()
+        };
+        let e = expect_range(g.validate(MAX), "b_mm");
+        assert_eq!(
+            (e.value, e.bounds.max, e.bounds.max_inclusive),
+            (3.0, 3.0, false)
+        );
+        assert!(
+            g.validate(MAX)
+                .unwrap_err()
+                .to_string()
+                .ends_with("must be in [0, 3)")
+        );
+        assert!(
+            TendonGeometry {
+                b_mm: 2.999,
+                ..Default::default()
+            }
+            .validate(MAX)
+            .is_ok()
+        );
     }
 
     #[test]
     fn unreachable_length_is_an_error() {
         let g = TendonGeometry::default();
+        // a huge length prints in scientific notation, not 301 digits
+        let msg = g
+            .theta_rad_from_delta_l_a(-1e300, MAX)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.starts_with("tendon length change -1e300 mm is not reachable: reachable range ["),
+            "{msg}"
+        );
+        assert!(msg.len() < 120, "{msg}");
         assert!(matches!(
             g.theta_rad_from_delta_l_a(100.0, MAX),
             Err(ModelError::Unreachable { .. })
