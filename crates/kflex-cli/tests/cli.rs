@@ -66,9 +66,23 @@ fn run_writes_results_with_the_agreed_fields() {
             "rmse_std_deg",
             "max_hysteresis_deg",
             "max_hysteresis_std_deg",
+            "error_peak_to_peak_deg",
+            "peak_loss_deg",
+            "peak_loss_std_deg",
         ] {
             assert!(r.get(key).is_some(), "missing {key} in {r}");
         }
+        // three readings of "maximum hysteresis": the loop width cannot exceed the
+        // error's peak-to-peak by more than a 1-deg bin (the gap between the branches
+        // at equal command is a difference of two errors)
+        let width = r["max_hysteresis_deg"].as_f64().unwrap();
+        let p2p = r["error_peak_to_peak_deg"].as_f64().unwrap();
+        let loss = r["peak_loss_deg"].as_f64().unwrap();
+        assert!(width > 0.0 && width <= p2p + 1.0, "{r}");
+        assert!(
+            loss > 0.0 && loss < 50.0,
+            "the lagging joint falls short of the peak: {r}"
+        );
         assert_eq!(r["estimator"], "none");
         assert_eq!(r["occlusion"], "0%");
         assert_eq!(r["sheath_deg"].as_f64(), Some(sheath));
@@ -153,7 +167,7 @@ fn config_file_changes_the_plant() {
     // a frictionless sheath and no backlash: the loop nearly closes
     std::fs::write(
         &config,
-        r#"{"sheath": {"friction_coefficient": 0.0, "coulomb_friction_n": 0.0, "drive_backlash_mm": 0.0}}"#,
+        r#"{"sheath": {"friction_coefficient": 0.0, "drive_backlash_mm": 0.0}}"#,
     )
     .unwrap();
     let out = kflex(&[

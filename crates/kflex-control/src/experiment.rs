@@ -171,9 +171,13 @@ impl OpenLoopScenario {
 /// as in the paper's measurements).
 ///
 /// **Repeats.** Each repeat draws a plant from the nominal one with a
-/// parameter spread ([`kflex_model::PlantConfig::perturbed`]) and its own noise
-/// seed; both seeds are recorded. The spread stands in for what changes between
-/// repeated runs on a real robot (temperature, tendon seating, sheath lay).
+/// parameter spread ([`kflex_model::PlantConfig::perturbed`]: every physical
+/// parameter, and the tendons' seating) and its own noise seed; both seeds
+/// are recorded. The spread stands in for what changes between repeated runs
+/// on a real robot (friction with lubrication and temperature, re-tensioning,
+/// tendon seating, sheath lay). The default, 15 %, gives a run-to-run RMSE
+/// spread of the order of the paper's (its Table IX ± figures; see
+/// CALIBRATION.md).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct OpenLoopGrid {
@@ -187,7 +191,8 @@ pub struct OpenLoopGrid {
     pub repeats: u32,
     /// Base seed; repeat `r` uses `seed + r` for both spread and noise.
     pub seed: u64,
-    /// Relative parameter spread between repeats (0 for identical plants).
+    /// Relative parameter spread between repeats, `[0, 0.5]` (0 for identical
+    /// plants at rest; the default 0.15).
     pub spread: f64,
     /// Measurement noise of every run; `None` for the true angle.
     pub noise: Option<AuroraNoise>,
@@ -201,7 +206,7 @@ impl Default for OpenLoopGrid {
             sheaths_deg: vec![0.0, 90.0, 180.0, 270.0],
             repeats: 3,
             seed: 2020,
-            spread: 0.05,
+            spread: 0.15,
             noise: Some(AuroraNoise::default()),
         }
     }
