@@ -1,97 +1,126 @@
-//! Fits the plant's free parameters to Table IX's uncompensated row.
+//! Fits the plant's free parameters to Table IX's uncompensated row, then
+//! checks the fit by leaving each sheath angle out.
 //!
-//! `cargo run --release -p kflex-control --example fit_calibration`
+//! `make fit` runs `cargo run --release -p kflex-control --example fit_calibration`.
 //!
 //! Targets (paper, Table IX, "None"): RMSE 7.84 / 9.95 / 16.6 / 21.9 deg and
-//! maximum hysteresis size 9.23 / 15.1 / 18.3 / 18.4 deg at sheath 0 / 90 /
-//! 180 / 270 deg. The cost is the sum of squared relative errors of the eight
-//! figures, each divided by its acceptance tolerance (±20 % RMSE, ±30 % width), on the nominal plant without noise or spread, one run each, with
-//! the protocol of `kflex-cli run`. Free parameters, searched in log space
-//! within plausible boxes (`BOX`) by a seeded random search, then by
-//! Nelder–Mead from the three best and from the shipped defaults: friction coefficient μ, route wrap
-//! Φ_route, Coulomb friction F_c, pretension T₀, contact stiffness k_φ,
-//! tendon stiffness k, drive backlash and shaft coupling. The geometry
-//! and masses keep their K-FLEX-scale defaults.
-//! `fit_calibration [SAMPLES]` sets the random-search size (default 600). The script prints the fitted constants to paste into
-//! `crates/kflex-model/src/calibration.rs` and the residual table for
-//! `crates/kflex-model/CALIBRATION.md`.
+//! maximum hysteresis size (read as the loop width) 9.23 / 15.1 / 18.3 /
+//! 18.4 deg at sheath 0 / 90 / 180 / 270 deg. The cost is the sum of squared
+//! relative errors, each divided by its acceptance tolerance (±20 % RMSE and
+//! ±30 % width at 0–180 deg, ±25 % and ±40 % at 270 deg), on the nominal
+//! plant without noise or spread, one run each, with the protocol of
+//! `kflex-cli run`.
+//!
+//! Five free parameters (`FREE`), each a physical quantity searched in log
+//! space inside its plausible range (written beside it): a seeded random
+//! search, then Nelder–Mead from the best samples and from the shipped
+//! defaults. Every other parameter keeps its value from the instrument's
+//! dimensions or the literature (CALIBRATION.md gives the sources).
+//!
+//! Usage: `fit_calibration [SAMPLES] [--no-loo]` (SAMPLES: random-search size,
+//! default 120); `fit_calibration eval` prints the tables for the shipped
+//! defaults only; `fit_calibration loops FILE` writes the nominal plant's
+//! traces for `tools/plot_loops.py`. It prints the fitted constants for
+//! `crates/kflex-model/src/calibration.rs`, the residual table, the three
+//! readings of the maximum hysteresis, and the leave-one-sheath-out table
+//! for `crates/kflex-model/CALIBRATION.md`.
 
-use kflex_control::OpenLoopGrid;
+use kflex_control::{GridRow, OpenLoopGrid};
 use kflex_model::PlantConfig;
 
 const SHEATHS: [f64; 4] = [0.0, 90.0, 180.0, 270.0];
 const RMSE: [f64; 4] = [7.84, 9.95, 16.6, 21.9];
 const WIDTH: [f64; 4] = [9.23, 15.1, 18.3, 18.4];
-const NAMES: [&str; 8] = [
-    "friction_coefficient",
-    "route_wrap_deg",
-    "coulomb_friction_n",
-    "pretension_n",
-    "contact_stiffness",
-    "tendon_stiffness",
-    "drive_backlash_mm",
-    "sheath_coupling_mm_per_rad",
+/// Acceptance tolerances (relative) per sheath angle: the cost is measured in units of them.
+const RMSE_TOL: [f64; 4] = [0.20, 0.20, 0.20, 0.25];
+const WIDTH_TOL: [f64; 4] = [0.30, 0.30, 0.30, 0.40];
+
+/// A free parameter: its name, its plausible range, and where it lives in the config.
+struct Free {
+    name: &'static str,
+    range: (f64, f64),
+    get: fn(&PlantConfig) -> f64,
+    set: fn(&mut PlantConfig, f64),
+}
+
+const FREE: [Free; 5] = [
+    Free {
+        // steel tendon in a coil sheath: PTFE-lined 0.05–0.2, unlined up to 0.3
+        name: "sheath.friction_coefficient",
+        range: (0.05, 0.3),
+        get: |c| c.sheath.friction_coefficient,
+        set: |c, v| c.sheath.friction_coefficient = v,
+    },
+    Free {
+        // tendon (0.3 mm steel, 1.3 m: EA/L = 10.5 N/mm) in series with the coil
+        // sheath's axial compliance: 2–15 N/mm
+        name: "sheath.tendon_stiffness_n_per_mm",
+        range: (2.0, 15.0),
+        get: |c| c.sheath.tendon_stiffness_n_per_mm,
+        set: |c, v| c.sheath.tendon_stiffness_n_per_mm = v,
+    },
+    Free {
+        // path shortening of a tendon that takes the inside of its lumen as the
+        // sheath bends: the radial clearance, 0.001–0.3 mm per radian of bend
+        // (stored negative: the path shortens)
+        name: "sheath.sheath_path_mm_per_rad (negated)",
+        range: (0.001, 0.3),
+        get: |c| (-c.sheath.sheath_path_mm_per_rad).max(0.001),
+        set: |c, v| c.sheath.sheath_path_mm_per_rad = -v,
+    },
+    Free {
+        // gear and capstan play of a small differential drive: 0.01–0.3 mm of stroke
+        name: "sheath.drive_backlash_mm",
+        range: (0.01, 0.3),
+        get: |c| c.sheath.drive_backlash_mm,
+        set: |c, v| c.sheath.drive_backlash_mm = v,
+    },
+    Free {
+        // bending stiffness of one rolling contact (springs, jacket): 5–300 N·mm/rad
+        name: "joint.contact_stiffness_nmm_per_rad",
+        range: (5.0, 300.0),
+        get: |c| c.joint.contact_stiffness_nmm_per_rad,
+        set: |c, v| c.joint.contact_stiffness_nmm_per_rad = v,
+    },
 ];
-/// Search box (natural units) of each parameter: physically plausible for a K-FLEX-scale instrument.
-const BOX: [(f64, f64); 8] = [
-    (0.05, 1.0),  // friction coefficient
-    (1.0, 360.0), // route wrap, deg
-    (0.01, 10.0), // Coulomb friction, N
-    (0.5, 30.0),  // pretension, N
-    (1.0, 500.0), // contact stiffness, N·mm/rad
-    (2.0, 200.0), // tendon stiffness, N/mm
-    (0.001, 0.3), // drive backlash, mm
-    (0.001, 1.0), // shaft coupling, mm/rad
-];
-/// Acceptance tolerances (relative): the cost is measured in units of them.
-const RMSE_TOL: f64 = 0.20;
-const WIDTH_TOL: f64 = 0.30;
 
 fn config(x: &[f64]) -> PlantConfig {
     let mut c = PlantConfig::default();
-    c.sheath.friction_coefficient = x[0].exp();
-    c.sheath.route_wrap_deg = x[1].exp();
-    c.sheath.coulomb_friction_n = x[2].exp();
-    c.sheath.pretension_n = x[3].exp();
-    c.joint.contact_stiffness_nmm_per_rad = x[4].exp();
-    c.sheath.tendon_stiffness_n_per_mm = x[5].exp();
-    c.sheath.drive_backlash_mm = x[6].exp();
-    c.sheath.sheath_coupling_mm_per_rad = x[7].exp();
+    for (free, v) in FREE.iter().zip(x) {
+        (free.set)(&mut c, v.exp());
+    }
     c
 }
 
-fn evaluate(x: &[f64]) -> Option<Vec<(f64, f64)>> {
+fn evaluate(plant: PlantConfig, sheaths: &[f64]) -> Option<Vec<GridRow>> {
     let grid = OpenLoopGrid {
-        plant: config(x),
-        sheaths_deg: SHEATHS.to_vec(),
+        plant,
+        sheaths_deg: sheaths.to_vec(),
         repeats: 1,
         spread: 0.0,
         noise: None,
         ..OpenLoopGrid::default()
     };
-    let rows = grid.run().ok()?;
-    Some(
-        rows.iter()
-            .map(|r| (r.rmse_deg.mean, r.max_hysteresis_deg.mean))
-            .collect(),
-    )
+    grid.run().ok()
 }
 
-fn cost(x: &[f64]) -> f64 {
-    // the boxes are hard limits: a fit outside them is not a plausible instrument
+/// Cost over the sheath angles `which` (indices into `SHEATHS`).
+fn cost(x: &[f64], which: &[usize]) -> f64 {
+    // the ranges are hard limits: a fit outside them is not a plausible instrument
     if x.iter()
-        .zip(BOX)
-        .any(|(v, (lo, hi))| *v < lo.ln() || *v > hi.ln())
+        .zip(&FREE)
+        .any(|(v, f)| *v < f.range.0.ln() || *v > f.range.1.ln())
     {
         return f64::INFINITY;
     }
-    match evaluate(x) {
-        Some(v) => v
+    let sheaths: Vec<f64> = which.iter().map(|&i| SHEATHS[i]).collect();
+    match evaluate(config(x), &sheaths) {
+        Some(rows) => rows
             .iter()
-            .enumerate()
-            .map(|(i, (r, w))| {
-                ((r - RMSE[i]) / (RMSE[i] * RMSE_TOL)).powi(2)
-                    + ((w - WIDTH[i]) / (WIDTH[i] * WIDTH_TOL)).powi(2)
+            .zip(which)
+            .map(|(r, &i)| {
+                ((r.rmse_deg.mean - RMSE[i]) / (RMSE[i] * RMSE_TOL[i])).powi(2)
+                    + ((r.max_hysteresis_deg.mean - WIDTH[i]) / (WIDTH[i] * WIDTH_TOL[i])).powi(2)
             })
             .sum(),
         None => f64::INFINITY,
@@ -156,82 +185,182 @@ fn uniform(state: &mut u64) -> f64 {
     ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
 }
 
-fn main() {
-    let samples: usize = std::env::args()
-        .nth(1)
-        .and_then(|a| a.parse().ok())
-        .unwrap_or(600);
+/// Random search then Nelder–Mead, on the sheath angles `which`.
+fn fit(which: &[usize], samples: usize, verbose: bool) -> (Vec<f64>, f64) {
+    let f = |x: &[f64]| cost(x, which);
     let mut rng = 2020u64;
     let mut pool: Vec<(Vec<f64>, f64)> = (0..samples)
         .map(|_| {
-            let x: Vec<f64> = BOX
+            let x: Vec<f64> = FREE
                 .iter()
-                .map(|(lo, hi)| lo.ln() + uniform(&mut rng) * (hi.ln() - lo.ln()))
+                .map(|p| p.range.0.ln() + uniform(&mut rng) * (p.range.1.ln() - p.range.0.ln()))
                 .collect();
-            let c = cost(&x);
+            let c = f(&x);
             (x, c)
         })
         .collect();
     pool.sort_by(|a, b| a.1.total_cmp(&b.1));
-    println!(
-        "random search over {samples} samples: best cost {:.4}",
-        pool[0].1
-    );
-    // Nelder–Mead from the three best samples and from the shipped defaults
     let d = PlantConfig::default();
-    let shipped = vec![
-        d.sheath.friction_coefficient.ln(),
-        d.sheath.route_wrap_deg.ln(),
-        d.sheath.coulomb_friction_n.ln(),
-        d.sheath.pretension_n.ln(),
-        d.joint.contact_stiffness_nmm_per_rad.ln(),
-        d.sheath.tendon_stiffness_n_per_mm.ln(),
-        d.sheath.drive_backlash_mm.ln(),
-        d.sheath.sheath_coupling_mm_per_rad.ln(),
-    ];
-    let shipped_cost = cost(&shipped);
-    println!("shipped defaults: cost {shipped_cost:.4}");
+    let shipped: Vec<f64> = FREE.iter().map(|p| (p.get)(&d).ln()).collect();
+    let shipped_cost = f(&shipped);
+    if verbose {
+        println!(
+            "random search over {samples} samples: best cost {:.4}",
+            pool[0].1
+        );
+        println!("shipped defaults: cost {shipped_cost:.4}");
+    }
     let starts: Vec<(Vec<f64>, f64)> = pool
         .iter()
-        .take(3)
+        .take(2)
         .cloned()
         .chain([(shipped, shipped_cost)])
         .collect();
-    let mut best = (starts[0].0.clone(), starts[0].1);
+    let mut best = (starts[0].0.clone(), f64::INFINITY);
     for (i, (x0, c0)) in starts.iter().enumerate() {
-        let (mut x, mut c) = nelder_mead(cost, x0, 0.3, 300);
-        for _ in 0..2 {
-            let (x2, c2) = nelder_mead(cost, &x, 0.1, 200);
-            if c2 < c {
-                (x, c) = (x2, c2);
-            }
+        let (mut x, mut c) = nelder_mead(f, x0, 0.3, 150);
+        let (x2, c2) = nelder_mead(f, &x, 0.1, 100);
+        if c2 < c {
+            (x, c) = (x2, c2);
         }
-        println!("start {i}: {c0:.4} -> {c:.5}");
+        if verbose {
+            println!("start {i}: {c0:.4} -> {c:.5}");
+        }
         if c < best.1 {
             best = (x, c);
         }
     }
-    let (x, c) = best;
-    println!("\nfitted (cost {c:.5}):");
-    for (name, v) in NAMES.iter().zip(&x) {
-        println!("  {name} = {:.4}", v.exp());
-    }
+    best
+}
+
+fn rel(v: f64, target: f64) -> String {
+    format!("{:+.1} %", 100.0 * (v / target - 1.0))
+}
+
+fn print_tables(plant: PlantConfig) {
+    let Some(rows) = evaluate(plant, &SHEATHS) else {
+        println!("the plant failed to run");
+        return;
+    };
     println!(
-        "\n| sheath (deg) | RMSE paper | RMSE kflex | rel. | max. hysteresis paper | kflex | rel. |"
+        "\n| sheath (deg) | RMSE paper | RMSE kflex | rel. | loop width paper | kflex | rel. |"
     );
     println!("|---|---|---|---|---|---|---|");
-    if let Some(v) = evaluate(&x) {
-        for (i, (r, w)) in v.iter().enumerate() {
-            println!(
-                "| {} | {:.2} | {:.2} | {:+.1}% | {:.2} | {:.2} | {:+.1}% |",
-                SHEATHS[i],
-                RMSE[i],
-                r,
-                100.0 * (r / RMSE[i] - 1.0),
-                WIDTH[i],
-                w,
-                100.0 * (w / WIDTH[i] - 1.0)
-            );
+    for (i, r) in rows.iter().enumerate() {
+        println!(
+            "| {} | {:.2} | {:.2} | {} | {:.2} | {:.2} | {} |",
+            SHEATHS[i],
+            RMSE[i],
+            r.rmse_deg.mean,
+            rel(r.rmse_deg.mean, RMSE[i]),
+            WIDTH[i],
+            r.max_hysteresis_deg.mean,
+            rel(r.max_hysteresis_deg.mean, WIDTH[i]),
+        );
+    }
+    println!("\nThree readings of the maximum hysteresis (paper 9.23 / 15.1 / 18.3 / 18.4):");
+    println!("| sheath (deg) | loop width | error peak-to-peak | peak loss |");
+    println!("|---|---|---|---|");
+    for (i, r) in rows.iter().enumerate() {
+        println!(
+            "| {} | {:.2} ({}) | {:.2} ({}) | {:.2} ({}) |",
+            SHEATHS[i],
+            r.max_hysteresis_deg.mean,
+            rel(r.max_hysteresis_deg.mean, WIDTH[i]),
+            r.error_peak_to_peak_deg.mean,
+            rel(r.error_peak_to_peak_deg.mean, WIDTH[i]),
+            r.peak_loss_deg.mean,
+            rel(r.peak_loss_deg.mean, WIDTH[i]),
+        );
+    }
+}
+
+/// The nominal plant's traces (protocol of `kflex-cli run`, true angle) as CSV:
+/// `sheath_deg,time_s,theta_d_deg,theta_a_deg`, for `tools/plot_loops.py`.
+fn write_loops(path: &str) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut out = String::from("sheath_deg,time_s,theta_d_deg,theta_a_deg\n");
+    for sheath_deg in SHEATHS {
+        let config = PlantConfig {
+            sheath_deg,
+            ..PlantConfig::default()
+        };
+        let mut plant = kflex_model::Plant::new(config).map_err(std::io::Error::other)?;
+        let trace = kflex_control::OpenLoopScenario::default()
+            .run(&mut plant)
+            .map_err(std::io::Error::other)?;
+        for i in 0..trace.time_s.len() {
+            out.push_str(&format!(
+                "{sheath_deg},{:.4},{:.6},{:.6}\n",
+                trace.time_s[i], trace.theta_d_deg[i], trace.theta_a_deg[i]
+            ));
         }
+    }
+    let tmp = format!("{path}.tmp");
+    let mut f = std::fs::File::create(&tmp)?;
+    f.write_all(out.as_bytes())?;
+    f.sync_all()?;
+    std::fs::rename(&tmp, path)
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.first().map(String::as_str) == Some("eval") {
+        print_tables(PlantConfig::default());
+        return;
+    }
+    if args.first().map(String::as_str) == Some("loops") {
+        let path = args.get(1).map_or("loops.csv", String::as_str);
+        if let Err(e) = write_loops(path) {
+            eprintln!("writing {path}: {e}");
+            std::process::exit(1);
+        }
+        return;
+    }
+    let samples: usize = args.iter().find_map(|a| a.parse().ok()).unwrap_or(120);
+    let loo = !args.iter().any(|a| a == "--no-loo");
+    let all = [0, 1, 2, 3];
+    let (x, c) = fit(&all, samples, true);
+    println!("\nfitted (cost {c:.5}):");
+    for (p, v) in FREE.iter().zip(&x) {
+        let (lo, hi) = p.range;
+        println!("  {} = {:.4}   (range {lo} – {hi})", p.name, v.exp());
+    }
+    print_tables(config(&x));
+    if !loo {
+        return;
+    }
+    println!(
+        "\nLeave one sheath out: fit on three, predict the fourth (goal: within 1.5x the tolerances)"
+    );
+    println!(
+        "| left out (deg) | RMSE paper | predicted | rel. | in 1.5x tol. | loop width paper | predicted | rel. | in 1.5x tol. |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for out in 0..4 {
+        let which: Vec<usize> = all.iter().copied().filter(|&i| i != out).collect();
+        let (x, _) = fit(&which, samples / 2, false);
+        let Some(rows) = evaluate(config(&x), &[SHEATHS[out]]) else {
+            println!("| {} | failed |", SHEATHS[out]);
+            continue;
+        };
+        let r = &rows[0];
+        let (er, ew) = (
+            r.rmse_deg.mean / RMSE[out] - 1.0,
+            r.max_hysteresis_deg.mean / WIDTH[out] - 1.0,
+        );
+        let ok = |e: f64, tol: f64| if e.abs() <= 1.5 * tol { "yes" } else { "no" };
+        println!(
+            "| {} | {:.2} | {:.2} | {:+.1} % | {} | {:.2} | {:.2} | {:+.1} % | {} |",
+            SHEATHS[out],
+            RMSE[out],
+            r.rmse_deg.mean,
+            100.0 * er,
+            ok(er, RMSE_TOL[out]),
+            WIDTH[out],
+            r.max_hysteresis_deg.mean,
+            100.0 * ew,
+            ok(ew, WIDTH_TOL[out]),
+        );
     }
 }

@@ -15,20 +15,24 @@ impl Default for SheathParams {
     }
 }
 
-/// Tendon-sheath parameters: physical values from the K-FLEX instrument and
-/// the literature, and the fitted ones (see CALIBRATION.md for which and why).
+/// Tendon-sheath parameters. Set from the instrument and the literature:
+/// route wrap, pretension, the distal run's stiffness, the pre-sliding
+/// displacement and the element count. Fitted to Table IX (`make fit`):
+/// friction coefficient, tendon stiffness, the sheath's path change and the
+/// drive backlash. CALIBRATION.md gives each value's source or range.
 pub(crate) const FITTED_SHEATH: SheathParams = SheathParams {
-    friction_coefficient: 0.15,
-    route_wrap_deg: 30.0,
+    friction_coefficient: 0.3000,
+    route_wrap_deg: 10.0,
     pretension_n: 3.0,
-    tendon_stiffness_n_per_mm: 10.5,
+    tendon_stiffness_n_per_mm: 9.551,
     distal_stiffness_n_per_mm: 270.0,
-    drive_backlash_mm: 0.1,
-    presliding_mm: 0.02,
+    drive_backlash_mm: 0.1783,
+    backlash_engagement_mm: 0.05,
+    presliding_mm: 0.05,
     elements: 20,
-    sheath_path_mm_per_rad: 0.0,
+    sheath_path_mm_per_rad: -0.1566,
 };
 
 /// Fitted bending stiffness of one rolling contact, N·mm/rad. The pretension's
-/// straightening moment, `2T₀(R − B) ≈ 13.5` N·mm/rad per contact, adds to it.
-pub(crate) const FITTED_CONTACT_STIFFNESS: f64 = 34.86;
+/// straightening moment, `2T₀(R − B) ≈ 10.8` N·mm/rad per contact, adds to it.
+pub(crate) const FITTED_CONTACT_STIFFNESS: f64 = 18.40;

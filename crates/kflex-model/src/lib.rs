@@ -3,7 +3,8 @@
 //! The simulated flexible surgery robot on which kflex reproduces the seed
 //! paper (Baek et al., RA-L 2020): the bending joint's tendon kinematics
 //! (Eq. 1–2), hysteresis operators (Bouc–Wen, play), the tendon-sheath
-//! transmission whose friction grows with the sheath's bend (capstan law), the
+//! transmission (each tendon a chain of Bouc–Wen friction elements, whose
+//! friction grows with the sheath's bend by the capstan law), the
 //! joint's mechanics (analytic, or a rapier3d multibody chain), command
 //! trajectories, and the endoscope camera (instrument geometry, pinhole
 //! camera, silhouette rasterizer, shaded frames over clinical backgrounds).

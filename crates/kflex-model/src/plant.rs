@@ -147,10 +147,12 @@ impl PlantConfig {
         scale(&mut s.tendon_stiffness_n_per_mm);
         scale(&mut s.distal_stiffness_n_per_mm);
         scale(&mut s.drive_backlash_mm);
+        scale(&mut s.backlash_engagement_mm);
         scale(&mut s.presliding_mm);
         scale(&mut out.joint.contact_stiffness_nmm_per_rad);
         out.sheath.friction_coefficient = out.sheath.friction_coefficient.min(1.0);
         out.sheath.drive_backlash_mm = out.sheath.drive_backlash_mm.min(10.0);
+        out.sheath.backlash_engagement_mm = out.sheath.backlash_engagement_mm.min(10.0);
         out.sheath.presliding_mm = out.sheath.presliding_mm.clamp(1e-5, 10.0);
         out.sheath.route_wrap_deg = out.sheath.route_wrap_deg.min(3600.0);
         out.seating = Seating {

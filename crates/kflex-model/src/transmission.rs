@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, finite};
-use crate::hysteresis::{BoucWen, BoucWenParams, Play};
+use crate::hysteresis::{BoucWen, BoucWenParams};
 use crate::range::Bounds;
 
 /// Parameters of the tendon-sheath transmission. Forces in N, lengths in mm,
@@ -28,6 +28,10 @@ pub struct SheathParams {
     pub distal_stiffness_n_per_mm: f64,
     /// Half-width of the differential drive's backlash, mm of tendon stroke.
     pub drive_backlash_mm: f64,
+    /// Travel over which the drive's tooth flanks take up the load once they
+    /// meet, mm of stroke (their contact compliance): the backlash's corners
+    /// are rounded over about `2ε` instead of being sharp. 0 is an ideal play.
+    pub backlash_engagement_mm: f64,
     /// Pre-sliding displacement `δ` of the tendon in its sheath, mm: the
     /// relative motion over which friction builds up to its sliding value
     /// (Dahl's law; about 95 % after `3δ`).
@@ -53,7 +57,7 @@ impl SheathParams {
     /// `route_wrap_deg` outside `[0, 3600]` deg, `pretension_n` outside
     /// `(0, 1000]` N, `tendon_stiffness_n_per_mm` outside `(0, 1e6)` N/mm,
     /// `distal_stiffness_n_per_mm` outside `(0, 1e7)` N/mm,
-    /// `drive_backlash_mm` outside `[0, 10]` mm, `presliding_mm` outside
+    /// `drive_backlash_mm` or `backlash_engagement_mm` outside `[0, 10]` mm, `presliding_mm` outside
     /// `[1e-5, 10]` mm, `elements` outside `[1, 200]`,
     /// `sheath_path_mm_per_rad` outside `[−1, 1]` mm/rad (NaN is out of every
     /// range); then `route_wrap_deg` above [`SheathParams::max_wrap_deg`].
@@ -68,6 +72,7 @@ impl SheathParams {
         Bounds::open(0.0, 1e7)
             .check("distal_stiffness_n_per_mm", self.distal_stiffness_n_per_mm)?;
         Bounds::closed(0.0, 10.0).check("drive_backlash_mm", self.drive_backlash_mm)?;
+        Bounds::closed(0.0, 10.0).check("backlash_engagement_mm", self.backlash_engagement_mm)?;
         Bounds::closed(1e-5, 10.0).check("presliding_mm", self.presliding_mm)?;
         Bounds::closed(1.0, 200.0).check("elements", f64::from(self.elements))?;
         Bounds::closed(-1.0, 1.0).check("sheath_path_mm_per_rad", self.sheath_path_mm_per_rad)?;
@@ -411,6 +416,70 @@ impl Tendon {
     }
 }
 
+/// The differential drive's backlash: the output stays put until the input
+/// has taken up the gap, then the flanks engage over the travel `ε`
+/// (`dy/dx` rising from 0 to 1 as `1 − e^{−s/ε}`), and the output follows
+/// at the half-width `r`. With `ε = 0` it is the ideal play
+/// `y ← max(x − r, min(x + r, y))` ([`crate::Play`]); either way the lost
+/// motion after a reversal is `2r`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct DriveBacklash {
+    half_width: f64,
+    engagement: f64,
+    x: f64,
+    y: f64,
+}
+
+impl DriveBacklash {
+    fn new(half_width: f64, engagement: f64) -> Self {
+        Self {
+            half_width,
+            engagement,
+            x: 0.0,
+            y: 0.0,
+        }
+    }
+
+    /// Input at 0, output at `y0` (inside the gap).
+    fn reset(&mut self, y0: f64) {
+        self.x = 0.0;
+        self.y = y0;
+    }
+
+    fn output(&self) -> f64 {
+        self.y
+    }
+
+    /// Moves the input to `x` (finite) and returns the output: exact for any increment.
+    fn advance(&mut self, x: f64) -> f64 {
+        let dx = x - self.x;
+        if dx == 0.0 {
+            return self.y;
+        }
+        let (r, eps) = (self.half_width, self.engagement);
+        let sign = dx.signum();
+        // gap in the direction of motion, and the travel left
+        let mut gap = sign * (self.x - self.y);
+        let mut travel = dx.abs();
+        let knee = r - eps;
+        if gap < knee {
+            let free = (knee - gap).min(travel);
+            gap += free;
+            travel -= free;
+        }
+        if travel > 0.0 {
+            gap = if eps > 0.0 {
+                r - (r - gap) * (-travel / eps).exp()
+            } else {
+                r
+            };
+        }
+        self.x = x;
+        self.y = x - sign * gap.min(r);
+        self.y
+    }
+}
+
 /// Proximal-to-distal tension ratio of one element with friction state `z`,
 /// `(1 + μdΦ z/2)/(1 − μdΦ z/2)` (the element balance
 /// `T_prox − T_dist = μ dΦ z (T_prox + T_dist)/2`; `e^{μdΦ z}` to third order),
@@ -479,8 +548,8 @@ pub struct TendonSheath {
     sheath_deg: f64,
     chain: Chain,
     /// Trial and committed state of the drive's backlash.
-    play: Play,
-    play_committed: Play,
+    play: DriveBacklash,
+    play_committed: DriveBacklash,
     a: Tendon,
     b: Tendon,
     /// Whether the last solve of both tendons converged.
@@ -500,7 +569,7 @@ impl TendonSheath {
         params.validate()?;
         Bounds::closed(0.0, params.max_sheath_deg()).check("sheath_deg", sheath_deg)?;
         let n = params.elements as usize;
-        let play = Play::new(params.drive_backlash_mm, 0.0)?;
+        let play = DriveBacklash::new(params.drive_backlash_mm, params.backlash_engagement_mm);
         let mut out = Self {
             params,
             sheath_deg,
@@ -599,7 +668,7 @@ impl TendonSheath {
         finite("differential stroke", differential_mm)?;
         finite("common-mode stroke", common_mode_mm)?;
         let mut play = self.play_committed;
-        let s = play.advance(differential_mm)?;
+        let s = play.advance(differential_mm);
         self.play = play;
         self.a.motor = s - common_mode_mm + self.chain.path_mm;
         self.b.motor = -s - common_mode_mm + self.chain.path_mm;
@@ -745,6 +814,7 @@ mod tests {
             tendon_stiffness_n_per_mm: 15.0,
             distal_stiffness_n_per_mm: 300.0,
             drive_backlash_mm: 0.0,
+            backlash_engagement_mm: 0.0,
             presliding_mm: 0.01,
             elements: 20,
             sheath_path_mm_per_rad: 0.0,

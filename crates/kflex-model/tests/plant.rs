@@ -556,14 +556,14 @@ fn joint_follows_its_path_under_compressive_tip_loads() {
     // (review) with a tip load pushing back, the balance has several roots; the
     // joint must move continuously to the one it reaches, never jump to another.
     // Loads stay below buckling: a larger axial push makes the joint snap
-    // through, which is physics, not a solver fault. At 270 deg the lagging
-    // joint has slackened tendon `a` (the motors paid out Eq. 1's common mode
-    // for the commanded angle), and with one tendon holding, 1.5 N already
-    // snaps it through near the straight pose.
+    // through, which is physics, not a solver fault. A lagging joint has
+    // slackened one tendon (the motors paid out Eq. 1's common mode for the
+    // commanded angle, and the bent sheath shortens the tendons' paths), and
+    // with one tendon holding about 1 N of axial push already snaps it through.
     for (sheath_deg, load) in [
-        (90.0, [-0.5, 0.0, -1.0]),
-        (180.0, [-1.0, 0.0, -2.0]),
-        (270.0, [0.5, 0.0, -1.0]),
+        (90.0, [-0.5, 0.0, -0.5]),
+        (180.0, [-1.0, 0.0, -0.6]),
+        (270.0, [0.5, 0.0, -0.5]),
     ] {
         let joint = JointParams {
             tip_load_n: load,

@@ -1,0 +1,225 @@
+//! The plant behaves as a tendon-sheath transmission does, measured on the
+//! shipped defaults with the paper's input (no noise, no spread): a
+//! symmetric sheath, loops with rounded transitions, and metrics that grow
+//! with the bend the way Table IX's do.
+
+use kflex_control::{GridRow, OpenLoopGrid, OpenLoopScenario};
+use kflex_model::{Command, Plant, PlantConfig, Sine, Trajectory};
+
+fn nominal() -> OpenLoopGrid {
+    OpenLoopGrid {
+        repeats: 1,
+        spread: 0.0,
+        noise: None,
+        ..OpenLoopGrid::default()
+    }
+}
+
+fn run(grid: OpenLoopGrid) -> Vec<GridRow> {
+    grid.run().unwrap()
+}
+
+#[test]
+fn a_mirrored_command_gives_a_mirrored_response_without_gravity() {
+    // −(25 sin t + 25) deg: the same input reflected through θ = 0
+    let mut plant = PlantConfig::default();
+    plant.joint.gravity_m_per_s2 = [0.0; 3];
+    let positive = run(OpenLoopGrid { plant, ..nominal() });
+    let mirrored = run(OpenLoopGrid {
+        plant,
+        scenario: OpenLoopScenario {
+            trajectory: Trajectory::Sine(Sine {
+                phase_rad: std::f64::consts::PI,
+                offset_deg: -25.0,
+                ..Sine::PAPER
+            }),
+            ..OpenLoopScenario::default()
+        },
+        ..nominal()
+    });
+    for (p, m) in positive.iter().zip(&mirrored) {
+        let rel = |a: f64, b: f64| (a / b - 1.0).abs();
+        assert!(
+            rel(m.rmse_deg.mean, p.rmse_deg.mean) < 0.03,
+            "sheath {}: RMSE {} mirrored vs {}",
+            p.sheath_deg,
+            m.rmse_deg.mean,
+            p.rmse_deg.mean
+        );
+        assert!(
+            rel(m.max_hysteresis_deg.mean, p.max_hysteresis_deg.mean) < 0.03,
+            "sheath {}: loop width {} mirrored vs {}",
+            p.sheath_deg,
+            m.max_hysteresis_deg.mean,
+            p.max_hysteresis_deg.mean
+        );
+    }
+    // and gravity, the one modelled cause of asymmetry, does break it
+    let with_gravity = {
+        let mut p = plant;
+        p.joint.gravity_m_per_s2 = [-9.81, 0.0, 0.0];
+        p.joint.tool_mass_g = 20.0;
+        p
+    };
+    let up = run(OpenLoopGrid {
+        plant: with_gravity,
+        sheaths_deg: vec![90.0],
+        ..nominal()
+    });
+    let down = run(OpenLoopGrid {
+        plant: with_gravity,
+        sheaths_deg: vec![90.0],
+        scenario: OpenLoopScenario {
+            trajectory: Trajectory::Sine(Sine {
+                phase_rad: std::f64::consts::PI,
+                offset_deg: -25.0,
+                ..Sine::PAPER
+            }),
+            ..OpenLoopScenario::default()
+        },
+        ..nominal()
+    });
+    assert!((up[0].rmse_deg.mean - down[0].rmse_deg.mean).abs() > 0.05);
+}
+
+#[test]
+fn rmse_grows_with_every_15_degrees_of_bend_and_the_loop_width_saturates() {
+    // (the loop width is not monotone on the way up: it dips by about 1 % at
+    // 75 deg and peaks near 135 deg; see CALIBRATION.md)
+    let sheaths: Vec<f64> = (0..=18).map(|k| 15.0 * f64::from(k)).collect();
+    let rows = run(OpenLoopGrid {
+        sheaths_deg: sheaths,
+        ..nominal()
+    });
+    for w in rows.windows(2) {
+        assert!(
+            w[1].rmse_deg.mean > w[0].rmse_deg.mean,
+            "RMSE fell from {} at {} deg to {} at {} deg",
+            w[0].rmse_deg.mean,
+            w[0].sheath_deg,
+            w[1].rmse_deg.mean,
+            w[1].sheath_deg
+        );
+    }
+    let widths: Vec<f64> = rows.iter().map(|r| r.max_hysteresis_deg.mean).collect();
+    // the loop widens with the bend, to its largest somewhere past 90 deg ...
+    let (peak, largest) =
+        widths.iter().copied().enumerate().fold(
+            (0, 0.0),
+            |best, (k, w)| if w > best.1 { (k, w) } else { best },
+        );
+    assert!(peak >= 6, "widest loop at {} deg: {widths:?}", 15 * peak);
+    assert!(
+        widths[12] > 1.1 * widths[0],
+        "the loop at 180 deg is not wider than at 0: {widths:?}"
+    );
+    // ... and from 180 deg on stays within 10 % of its largest value (Table IX's
+    // own widths saturate: 18.3 at 180 deg, 18.4 at 270 deg)
+    for (k, w) in widths.iter().enumerate().skip(12) {
+        assert!(
+            *w >= 0.9 * largest,
+            "loop width {w} at {} deg is more than 10 % below its largest {largest}",
+            15 * k
+        );
+    }
+}
+
+/// Slope dθ_a/dθ_d along the falling branch after the command's top reversal,
+/// as (command travelled since the reversal, slope), on the third period.
+fn falling_branch_slopes(sheath_deg: f64) -> Vec<(f64, f64)> {
+    let mut plant = Plant::new(PlantConfig {
+        sheath_deg,
+        ..PlantConfig::default()
+    })
+    .unwrap();
+    let dt = 0.01;
+    let sampler = Trajectory::paper().sampler().unwrap();
+    let ticks = (3.0 / 0.159 / dt) as usize;
+    let (mut d, mut a) = (Vec::new(), Vec::new());
+    for k in 0..ticks {
+        let s = sampler.sample(k as f64 * dt);
+        let state = plant
+            .step(
+                Command {
+                    theta_c_deg: s.theta_d_deg,
+                    translation_mm: 10.0,
+                },
+                dt,
+            )
+            .unwrap();
+        d.push(s.theta_d_deg);
+        a.push(state.theta_a_deg);
+    }
+    let top = (ticks / 3..ticks)
+        .max_by(|&i, &j| d[i].total_cmp(&d[j]))
+        .unwrap();
+    let mut out = Vec::new();
+    let mut i = top;
+    while i + 1 < ticks && d[i + 1] < d[i] {
+        out.push((d[top] - d[i + 1], (a[i] - a[i + 1]) / (d[i] - d[i + 1])));
+        i += 1;
+    }
+    out
+}
+
+#[test]
+fn after_a_reversal_the_slope_rises_continuously_over_several_degrees() {
+    // at 0 deg the sheath adds little friction and the drive's backlash shapes
+    // the reversal: its flanks' engagement rounds the corner there
+    for sheath_deg in [0.0, 90.0, 180.0, 270.0] {
+        let slopes = falling_branch_slopes(sheath_deg);
+        // the sliding value: the mean slope over the last 15 deg of the branch
+        let tail: Vec<f64> = slopes.iter().filter(|s| s.0 > 35.0).map(|s| s.1).collect();
+        let sliding = tail.iter().sum::<f64>() / tail.len() as f64;
+        assert!(
+            sliding > 0.2,
+            "sheath {sheath_deg}: sliding slope {sliding}"
+        );
+        let reach = |f: f64| slopes.iter().find(|s| s.1 >= f * sliding).unwrap().0;
+        let (p10, p90) = (reach(0.1), reach(0.9));
+        assert!(
+            p90 - p10 >= 3.0,
+            "sheath {sheath_deg}: 10 % → 90 % of the sliding slope over {:.2} deg of command",
+            p90 - p10
+        );
+        // no step on the way from 10 % to 90 %: between neighbouring samples
+        // (≈ 0.1–0.25 deg of command) the slope changes by a small part of its
+        // sliding value
+        for w in slopes.windows(2).filter(|w| w[1].0 >= p10 && w[1].0 <= p90) {
+            assert!(
+                (w[1].1 - w[0].1).abs() < 0.2 * sliding,
+                "sheath {sheath_deg}: slope jumped from {:.3} to {:.3} at {:.2} deg",
+                w[0].1,
+                w[1].1,
+                w[1].0
+            );
+        }
+    }
+}
+
+#[test]
+fn the_default_element_count_is_converged_to_2_percent() {
+    let at = |elements: u32| {
+        let mut plant = PlantConfig::default();
+        plant.sheath.elements = elements;
+        run(OpenLoopGrid {
+            plant,
+            sheaths_deg: vec![0.0, 270.0],
+            ..nominal()
+        })
+    };
+    let default = at(PlantConfig::default().sheath.elements);
+    let fine = at(4 * PlantConfig::default().sheath.elements);
+    for (d, f) in default.iter().zip(&fine) {
+        for (a, b) in [
+            (d.rmse_deg.mean, f.rmse_deg.mean),
+            (d.max_hysteresis_deg.mean, f.max_hysteresis_deg.mean),
+        ] {
+            assert!(
+                (a / b - 1.0).abs() < 0.02,
+                "sheath {}: {a} with the default elements vs {b} with four times as many",
+                d.sheath_deg
+            );
+        }
+    }
+}
