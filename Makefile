@@ -11,7 +11,7 @@ STAMP := $(VENV)/.installed
 CARGO ?= cargo
 RUN_ARGS ?=
 
-.PHONY: run test venv build test-rust test-embedded test-python lint fmt bench fit clean
+.PHONY: run test venv build test-rust test-embedded test-python lint fmt bench fit loops clean
 
 run: venv build
 	./target/release/kflex-cli run $(RUN_ARGS)
@@ -57,6 +57,10 @@ bench:
 
 fit:
 	$(CARGO) run --release --locked -p kflex-control --example fit_calibration
+
+# the picture of the calibrated loops in crates/kflex-model/CALIBRATION.md
+loops: venv
+	$(VPY) tools/plot_loops.py
 
 clean:
 	rm -rf target $(VENV)

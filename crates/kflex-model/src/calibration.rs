@@ -24,15 +24,15 @@ pub(crate) const FITTED_SHEATH: SheathParams = SheathParams {
     friction_coefficient: 0.3000,
     route_wrap_deg: 10.0,
     pretension_n: 3.0,
-    tendon_stiffness_n_per_mm: 9.551,
+    tendon_stiffness_n_per_mm: 8.041,
     distal_stiffness_n_per_mm: 270.0,
-    drive_backlash_mm: 0.1783,
+    drive_backlash_mm: 0.1771,
     backlash_engagement_mm: 0.05,
     presliding_mm: 0.05,
     elements: 20,
-    sheath_path_mm_per_rad: -0.1566,
+    sheath_path_mm_per_rad: -0.1568,
 };
 
 /// Fitted bending stiffness of one rolling contact, N·mm/rad. The pretension's
 /// straightening moment, `2T₀(R − B) ≈ 10.8` N·mm/rad per contact, adds to it.
-pub(crate) const FITTED_CONTACT_STIFFNESS: f64 = 18.40;
+pub(crate) const FITTED_CONTACT_STIFFNESS: f64 = 19.62;

@@ -365,6 +365,88 @@ impl Play {
     }
 }
 
+/// A gear backlash whose flanks take up the load over a short travel: the
+/// output stays put until the input has crossed the gap, then the flanks
+/// engage over the travel `ε` (`dy/dx` rising from 0 to 1 as `1 − e^{−s/ε}`),
+/// and the output follows at the half-width `r`. With `ε = 0` it is the
+/// ideal [`Play`]; either way the lost motion after a reversal tends to `2r`.
+/// Rate-independent and exact for any increment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Backlash {
+    half_width: f64,
+    engagement: f64,
+    x: f64,
+    y: f64,
+}
+
+impl Backlash {
+    /// Half-width `r ≥ 0`, engagement travel `ε ≥ 0`; input and output at 0.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming `backlash.half_width` or
+    /// `backlash.engagement` when negative, NaN or infinite.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
+    pub fn new(half_width: f64, engagement: f64) -> Result<Self> {
+        Bounds::closed(0.0, f64::MAX).check("backlash.half_width", half_width)?;
+        Bounds::closed(0.0, f64::MAX).check("backlash.engagement", engagement)?;
+        Ok(Self {
+            half_width,
+            engagement,
+            x: 0.0,
+            y: 0.0,
+        })
+    }
+
+    /// Current output.
+    #[must_use]
+    pub fn output(&self) -> f64 {
+        self.y
+    }
+
+    /// Input at `x0`, output at `x0 + offset` (`offset` clamped into the gap `[−r, r]`).
+    pub fn reset(&mut self, x0: f64, offset: f64) {
+        self.x = x0;
+        self.y = x0 + offset.clamp(-self.half_width, self.half_width);
+    }
+
+    /// Moves the input to `x`, returns the output. Non-finite `x` is an error and changes nothing.
+    ///
+    /// # Errors
+    /// [`ModelError::NonFinite`] for a NaN or infinite `x`.
+    ///
+    /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
+    pub fn advance(&mut self, x: f64) -> Result<f64> {
+        finite("backlash.x", x)?;
+        let dx = x - self.x;
+        if dx == 0.0 {
+            return Ok(self.y);
+        }
+        let (r, eps) = (self.half_width, self.engagement);
+        let sign = dx.signum();
+        // gap in the direction of motion, and the travel left
+        let mut gap = sign * (self.x - self.y);
+        let mut travel = dx.abs();
+        let knee = r - eps;
+        if gap < knee {
+            let free = (knee - gap).min(travel);
+            gap += free;
+            travel -= free;
+        }
+        if travel > 0.0 {
+            // engaged: d(gap)/dx = (r − gap)/ε
+            gap = if eps > 0.0 {
+                r - (r - gap) * (-travel / eps).exp()
+            } else {
+                r
+            };
+        }
+        self.x = x;
+        self.y = x - sign * gap.min(r);
+        Ok(self.y)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -701,5 +783,47 @@ mod tests {
                 prop_assert!((x - y).abs() <= r + 1e-12);
             }
         }
+    }
+
+    #[test]
+    fn backlash_is_the_play_without_engagement_and_rounds_it_with() {
+        let path: Vec<f64> = sine_path(2.0, 400, 3);
+        let mut play = Play::new(0.5, 0.0).unwrap();
+        let mut sharp = Backlash::new(0.5, 0.0).unwrap();
+        for &x in &path {
+            assert!((play.advance(x).unwrap() - sharp.advance(x).unwrap()).abs() < 1e-12);
+        }
+        // with engagement: same lost motion far from a reversal, a smooth slope near it
+        let mut round = Backlash::new(0.5, 0.1).unwrap();
+        let mut play = Play::new(0.5, 0.0).unwrap();
+        let (mut last_y, mut last_x, mut last_slope) = (0.0, 0.0, 0.0f64);
+        for k in 0..=2000 {
+            let x = 0.002 * f64::from(k);
+            let y = round.advance(x).unwrap();
+            let p = play.advance(x).unwrap();
+            assert!(
+                y >= p - 1e-12,
+                "the flanks meet before the ideal play would: never behind it"
+            );
+            if k > 0 {
+                let slope = (y - last_y) / (x - last_x);
+                assert!((0.0..=1.0 + 1e-9).contains(&slope));
+                assert!(
+                    slope - last_slope < 0.05,
+                    "no step in the slope at {x}: {last_slope} -> {slope}"
+                );
+                last_slope = slope;
+            }
+            (last_y, last_x) = (y, x);
+        }
+        assert!(
+            (last_y - (last_x - 0.5)).abs() < 1e-6,
+            "follows at r once engaged"
+        );
+        assert!(matches!(
+            round.advance(f64::NAN),
+            Err(ModelError::NonFinite { .. })
+        ));
+        assert!(Backlash::new(-1.0, 0.0).is_err() && Backlash::new(1.0, f64::NAN).is_err());
     }
 }

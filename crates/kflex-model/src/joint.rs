@@ -6,7 +6,9 @@ use serde::{Deserialize, Serialize};
 use crate::error::Result;
 use crate::kinematics::TendonGeometry;
 use crate::range::Bounds;
-use crate::transmission::{Distal, TendonSheath};
+#[cfg(feature = "multibody")]
+use crate::transmission::Distal;
+use crate::transmission::TendonSheath;
 
 /// Which joint model the plant uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -180,6 +182,7 @@ pub(crate) fn external_generalised_force(joint: &JointParams, two_n: usize, thet
 /// Moment of the tendon pair on one rolling contact at angle `phi` (rad), N·mm:
 /// `F d_t cos φ − (T_a + T_b)(R − B) sin φ` (virtual work on Eq. 1:
 /// `T_a ∂w_a/∂φ + T_b ∂w_b/∂φ` with `w = −ΔL` the tendons' pull-in).
+#[cfg(feature = "multibody")]
 pub(crate) fn contact_moment(geometry: &TendonGeometry, distal: &Distal, phi: f64) -> f64 {
     let (s, c) = phi.sin_cos();
     distal.force_n() * geometry.tendon_offset_mm * c
@@ -321,7 +324,8 @@ fn coupled_newton(
         let (sa, sb) = (ma.by_anchor / ma.by_tension, mb.by_anchor / mb.by_tension);
         let g_theta = ta * an.curvature[0] + tb * an.curvature[1] - k / two_n;
         let slope = g_theta - sa * an.slope[0] * an.slope[0] - sb * an.slope[1] * an.slope[1];
-        if !(slope < 0.0) {
+        // a stable balance only (NaN fails too)
+        if slope.is_nan() || slope >= 0.0 {
             return None;
         }
         let (ra, rb) = (

@@ -72,7 +72,7 @@ mod workspace;
 
 pub use camera::{Camera, Intrinsics};
 pub use error::{ModelError, Result};
-pub use hysteresis::{BoucWen, BoucWenParams, Play};
+pub use hysteresis::{Backlash, BoucWen, BoucWenParams, Play};
 pub use instrument::{Capsule, Instrument, InstrumentParams, InstrumentShape, Part};
 pub use joint::{JointModelKind, JointParams};
 pub use kinematics::TendonGeometry;

@@ -8,6 +8,7 @@ use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{ModelError, Result};
+use crate::hysteresis::Backlash;
 use crate::joint::{JointModelKind, JointParams, anchors_mm, solve_analytic};
 #[cfg(feature = "multibody")]
 use crate::joint_rapier::{RapierJoint, RapierSettings};
@@ -203,12 +204,16 @@ enum JointSolver {
 
 /// The tendon-driven bending joint with its sheath: the ground truth of the testbed.
 ///
-/// Per tick: the command θ_c becomes motor strokes through Eq. 1–2 (the
-/// controller's kinematic model, as in the paper); the strokes pass the
-/// tendon-sheath transmission ([`TendonSheath`]); the joint
-/// ([`JointParams`], analytic or rapier) settles where the tendons, its
-/// backbone, gravity and the tip load balance. An optional Aurora-like sensor
-/// adds Gaussian noise to the *measured* angle; the true angle is never noisy.
+/// Per tick: the command θ_c passes the drive's backlash ([`Backlash`] on
+/// its differential stroke, with the flanks' engagement) and becomes both
+/// motors' strokes through Eq. 1–2 (the controller's kinematic model, as in
+/// the paper: differential and common mode); the strokes pass the
+/// tendon-sheath transmission ([`TendonSheath`]: each tendon a chain of
+/// friction elements); the joint ([`JointParams`], analytic or rapier)
+/// settles where the tendons, its backbone, gravity and the tip load
+/// balance. An optional Aurora-like sensor adds Gaussian noise to the
+/// *measured* angle; the true angle is never noisy. [`PlantConfig::seating`]
+/// says how the tendons and the drive sit when it starts.
 pub struct Plant {
     config: PlantConfig,
     sheath: TendonSheath,
@@ -218,6 +223,8 @@ pub struct Plant {
     state: PlantState,
     /// θ_a one tick before the last, rad (the solver extrapolates from it).
     theta_before_rad: f64,
+    /// The drive's backlash, on the differential stroke of the command.
+    backlash: Backlash,
 }
 
 impl std::fmt::Debug for Plant {
@@ -258,6 +265,10 @@ impl Plant {
             noise,
             state: PlantState::default(),
             theta_before_rad: 0.0,
+            backlash: Backlash::new(
+                config.sheath.drive_backlash_mm,
+                config.sheath.backlash_engagement_mm,
+            )?,
         };
         plant.reset()?;
         Ok(plant)
@@ -306,6 +317,10 @@ impl Plant {
         self.joint = joint;
         self.rng = ChaCha8Rng::seed_from_u64(self.config.seed);
         self.theta_before_rad = 0.0;
+        self.backlash.reset(
+            0.0,
+            self.config.seating.backlash * self.config.sheath.drive_backlash_mm,
+        );
         let translation = self.config.translation.min_mm;
         self.state = PlantState {
             command: Command {
@@ -396,10 +411,13 @@ impl Plant {
         self.check_command(&command)?;
         let geometry = self.config.geometry;
         let theta_c = command.theta_c_deg.to_radians();
-        self.sheath.advance(
-            geometry.differential_stroke_mm(theta_c),
-            geometry.common_mode_mm(theta_c),
-        )?;
+        // the drive: the command's stroke through the backlash, then both
+        // tendons' paths of Eq. 1 for the angle that stroke stands for
+        let mut backlash = self.backlash;
+        let stroke = backlash.advance(geometry.differential_stroke_mm(theta_c))?;
+        let theta_b = geometry.theta_rad_from_stroke(stroke).unwrap_or(theta_c);
+        self.sheath
+            .advance(stroke, geometry.common_mode_mm(theta_b))?;
         let theta = match &mut self.joint {
             JointSolver::Analytic => solve_analytic(
                 &geometry,
@@ -441,6 +459,7 @@ impl Plant {
         let translation = self.state.translation_mm
             + (command.translation_mm - self.state.translation_mm).clamp(-max_move, max_move);
         self.theta_before_rad = self.state.theta_a_deg.to_radians();
+        self.backlash = backlash;
         let theta_a_deg = theta.to_degrees();
         let (noise_theta, noise_translation) = match &self.noise {
             Some((nt, nd)) => (nt.sample(&mut self.rng), nd.sample(&mut self.rng)),

@@ -26,7 +26,8 @@ pub struct SheathParams {
     /// Axial stiffness of one tendon from the sheath's distal end to its
     /// anchor in the joint, N/mm.
     pub distal_stiffness_n_per_mm: f64,
-    /// Half-width of the differential drive's backlash, mm of tendon stroke.
+    /// Half-width of the drive's backlash, mm of differential stroke (the
+    /// plant passes the command through it before the motors).
     pub drive_backlash_mm: f64,
     /// Travel over which the drive's tooth flanks take up the load once they
     /// meet, mm of stroke (their contact compliance): the backlash's corners
@@ -117,7 +118,8 @@ pub struct Seating {
     pub friction_a: f64,
     /// Friction state of tendon `b`'s elements, `[−1, 1]`.
     pub friction_b: f64,
-    /// Position inside the drive's backlash, `[−1, 1]` of its half-width.
+    /// Position inside the drive's backlash, `[−1, 1]` of its half-width
+    /// (used by [`crate::Plant`], which owns the drive).
     pub backlash: f64,
 }
 
@@ -416,70 +418,6 @@ impl Tendon {
     }
 }
 
-/// The differential drive's backlash: the output stays put until the input
-/// has taken up the gap, then the flanks engage over the travel `ε`
-/// (`dy/dx` rising from 0 to 1 as `1 − e^{−s/ε}`), and the output follows
-/// at the half-width `r`. With `ε = 0` it is the ideal play
-/// `y ← max(x − r, min(x + r, y))` ([`crate::Play`]); either way the lost
-/// motion after a reversal is `2r`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct DriveBacklash {
-    half_width: f64,
-    engagement: f64,
-    x: f64,
-    y: f64,
-}
-
-impl DriveBacklash {
-    fn new(half_width: f64, engagement: f64) -> Self {
-        Self {
-            half_width,
-            engagement,
-            x: 0.0,
-            y: 0.0,
-        }
-    }
-
-    /// Input at 0, output at `y0` (inside the gap).
-    fn reset(&mut self, y0: f64) {
-        self.x = 0.0;
-        self.y = y0;
-    }
-
-    fn output(&self) -> f64 {
-        self.y
-    }
-
-    /// Moves the input to `x` (finite) and returns the output: exact for any increment.
-    fn advance(&mut self, x: f64) -> f64 {
-        let dx = x - self.x;
-        if dx == 0.0 {
-            return self.y;
-        }
-        let (r, eps) = (self.half_width, self.engagement);
-        let sign = dx.signum();
-        // gap in the direction of motion, and the travel left
-        let mut gap = sign * (self.x - self.y);
-        let mut travel = dx.abs();
-        let knee = r - eps;
-        if gap < knee {
-            let free = (knee - gap).min(travel);
-            gap += free;
-            travel -= free;
-        }
-        if travel > 0.0 {
-            gap = if eps > 0.0 {
-                r - (r - gap) * (-travel / eps).exp()
-            } else {
-                r
-            };
-        }
-        self.x = x;
-        self.y = x - sign * gap.min(r);
-        self.y
-    }
-}
-
 /// Proximal-to-distal tension ratio of one element with friction state `z`,
 /// `(1 + μdΦ z/2)/(1 − μdΦ z/2)` (the element balance
 /// `T_prox − T_dist = μ dΦ z (T_prox + T_dist)/2`; `e^{μdΦ z}` to third order),
@@ -496,10 +434,12 @@ fn element_ratio(mu_dphi: f64, z: f64) -> (f64, f64) {
 /// tendon `a` must be pulled in by `w_a(θ) = −ΔL_a(θ) = s(θ) − c(θ)` and
 /// tendon `b` by `w_b(θ) = −s(θ) − c(θ)`, with `s` the differential stroke
 /// and `c` the common mode (both paths lengthen as the joint bends). The
-/// differential drive passes `s(θ_c)` through its backlash (a [`Play`] of
-/// half-width `drive_backlash_mm`, `s_b`), and the motors take tendon `a` to
-/// `m_a = s_b − c(θ_c)` and `b` to `m_b = −s_b − c(θ_c)`. When the joint lags
-/// (θ_a < θ_c) the motors have paid out more common mode than the joint
+/// drive takes the command through its backlash first ([`crate::Backlash`] on
+/// the differential stroke, half-width `drive_backlash_mm`, in [`crate::Plant`]),
+/// giving θ_b, and the motors take tendon `a` to `m_a = s(θ_b) − c(θ_b)` and
+/// `b` to `m_b = −s(θ_b) − c(θ_b)` ([`TendonSheath::advance`]), plus the path
+/// the bent sheath adds (`sheath_path_mm_per_rad`). When the joint lags
+/// (θ_a < θ_b) the motors have paid out more common mode than the joint
 /// takes up, and both tendons lose tension: a lagging joint is also a
 /// slacker one.
 ///
@@ -547,9 +487,6 @@ pub struct TendonSheath {
     params: SheathParams,
     sheath_deg: f64,
     chain: Chain,
-    /// Trial and committed state of the drive's backlash.
-    play: DriveBacklash,
-    play_committed: DriveBacklash,
     a: Tendon,
     b: Tendon,
     /// Whether the last solve of both tendons converged.
@@ -569,7 +506,6 @@ impl TendonSheath {
         params.validate()?;
         Bounds::closed(0.0, params.max_sheath_deg()).check("sheath_deg", sheath_deg)?;
         let n = params.elements as usize;
-        let play = DriveBacklash::new(params.drive_backlash_mm, params.backlash_engagement_mm);
         let mut out = Self {
             params,
             sheath_deg,
@@ -580,8 +516,6 @@ impl TendonSheath {
                 mu_dphi: 0.0,
                 path_mm: 0.0,
             },
-            play,
-            play_committed: play,
             a: Tendon::new(n, params.presliding_mm, params.pretension_n)?,
             b: Tendon::new(n, params.presliding_mm, params.pretension_n)?,
             converged: true,
@@ -644,18 +578,15 @@ impl TendonSheath {
     /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     pub fn reset(&mut self, seating: &Seating) -> Result<()> {
         seating.validate()?;
-        self.play
-            .reset(seating.backlash * self.params.drive_backlash_mm);
-        self.play_committed = self.play;
         self.a.seat(&self.chain, seating.friction_a);
         self.b.seat(&self.chain, seating.friction_b);
         self.converged = true;
         Ok(())
     }
 
-    /// Moves the motors to the differential stroke `differential_mm` (before
-    /// the backlash) and the common mode `common_mode_mm` (paid out on both
-    /// tendons), mm. The tendons answer when the joint's position is known:
+    /// Moves the motors to the differential stroke `differential_mm` and the
+    /// common mode `common_mode_mm` (paid out on both tendons), mm, both after
+    /// the drive's backlash. The tendons answer when the joint's position is known:
     /// [`TendonSheath::distal`], then [`TendonSheath::commit`] or
     /// [`TendonSheath::discard`].
     ///
@@ -667,9 +598,7 @@ impl TendonSheath {
     pub fn advance(&mut self, differential_mm: f64, common_mode_mm: f64) -> Result<()> {
         finite("differential stroke", differential_mm)?;
         finite("common-mode stroke", common_mode_mm)?;
-        let mut play = self.play_committed;
-        let s = play.advance(differential_mm);
-        self.play = play;
+        let s = differential_mm;
         self.a.motor = s - common_mode_mm + self.chain.path_mm;
         self.b.motor = -s - common_mode_mm + self.chain.path_mm;
         self.a.solved = None;
@@ -742,6 +671,7 @@ impl TendonSheath {
     }
 
     /// Whether the last solve converged.
+    #[cfg(feature = "multibody")]
     pub(crate) fn converged(&self) -> bool {
         self.converged
     }
@@ -755,7 +685,6 @@ impl TendonSheath {
         let d = self.distal(w_a_mm, w_b_mm)?;
         self.a.commit();
         self.b.commit();
-        self.play_committed = self.play;
         Ok(d)
     }
 
@@ -763,7 +692,6 @@ impl TendonSheath {
     pub fn discard(&mut self) {
         self.a.discard();
         self.b.discard();
-        self.play = self.play_committed;
     }
 
     /// Mean friction state of the pair, `(z̄_a − z̄_b)/2 ∈ [−1, 1]`, committed:
@@ -772,12 +700,6 @@ impl TendonSheath {
     #[must_use]
     pub fn friction_state(&self) -> f64 {
         0.5 * (self.a.mean_friction_state() - self.b.mean_friction_state())
-    }
-
-    /// Differential stroke after the drive's backlash (trial), mm.
-    #[must_use]
-    pub fn stroke_after_backlash_mm(&self) -> f64 {
-        self.play.output()
     }
 
     /// Upper bound of the pair's differential stiffness at the joint,
@@ -996,7 +918,6 @@ mod tests {
         t.distal(0.3, -0.3).unwrap();
         t.discard();
         assert_eq!(t.a.u, before.a.u);
-        assert_eq!(t.play, before.play);
         assert_eq!(t.a.motor, before.a.motor);
     }
 
