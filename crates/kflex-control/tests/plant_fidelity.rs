@@ -19,22 +19,26 @@ fn run(grid: OpenLoopGrid) -> Vec<GridRow> {
     grid.run().unwrap()
 }
 
+/// The paper's input reflected through θ = 0: −(25 sin t + 25) deg.
+fn mirrored() -> OpenLoopScenario {
+    OpenLoopScenario {
+        trajectory: Trajectory::Sine(Sine {
+            phase_rad: std::f64::consts::PI,
+            offset_deg: -25.0,
+            ..Sine::PAPER
+        }),
+        ..OpenLoopScenario::default()
+    }
+}
+
 #[test]
 fn a_mirrored_command_gives_a_mirrored_response_without_gravity() {
-    // −(25 sin t + 25) deg: the same input reflected through θ = 0
     let mut plant = PlantConfig::default();
     plant.joint.gravity_m_per_s2 = [0.0; 3];
     let positive = run(OpenLoopGrid { plant, ..nominal() });
     let mirrored = run(OpenLoopGrid {
         plant,
-        scenario: OpenLoopScenario {
-            trajectory: Trajectory::Sine(Sine {
-                phase_rad: std::f64::consts::PI,
-                offset_deg: -25.0,
-                ..Sine::PAPER
-            }),
-            ..OpenLoopScenario::default()
-        },
+        scenario: mirrored(),
         ..nominal()
     });
     for (p, m) in positive.iter().zip(&mirrored) {
@@ -69,14 +73,7 @@ fn a_mirrored_command_gives_a_mirrored_response_without_gravity() {
     let down = run(OpenLoopGrid {
         plant: with_gravity,
         sheaths_deg: vec![90.0],
-        scenario: OpenLoopScenario {
-            trajectory: Trajectory::Sine(Sine {
-                phase_rad: std::f64::consts::PI,
-                offset_deg: -25.0,
-                ..Sine::PAPER
-            }),
-            ..OpenLoopScenario::default()
-        },
+        scenario: mirrored(),
         ..nominal()
     });
     assert!((up[0].rmse_deg.mean - down[0].rmse_deg.mean).abs() > 0.05);

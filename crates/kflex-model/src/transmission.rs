@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Result, finite};
+use crate::error::{ModelError, Result, finite};
 use crate::hysteresis::{BoucWen, BoucWenParams};
 use crate::range::Bounds;
 
@@ -625,7 +625,7 @@ impl TendonSheath {
         if self.converged {
             Ok(d)
         } else {
-            Err(crate::ModelError::Diverged {
+            Err(ModelError::Diverged {
                 what: "tendon element balance",
             })
         }
@@ -725,7 +725,7 @@ impl TendonSheath {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::error::{ModelError, expect_range};
+    use crate::error::expect_range;
 
     /// Moderate, explicit parameters: these tests are about the mechanism, not the calibration.
     fn params() -> SheathParams {
