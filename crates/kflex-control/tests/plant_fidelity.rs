@@ -36,12 +36,12 @@ fn a_mirrored_command_gives_a_mirrored_response_without_gravity() {
     let mut plant = PlantConfig::default();
     plant.joint.gravity_m_per_s2 = [0.0; 3];
     let positive = run(OpenLoopGrid { plant, ..nominal() });
-    let mirrored = run(OpenLoopGrid {
+    let reflected = run(OpenLoopGrid {
         plant,
         scenario: mirrored(),
         ..nominal()
     });
-    for (p, m) in positive.iter().zip(&mirrored) {
+    for (p, m) in positive.iter().zip(&reflected) {
         let rel = |a: f64, b: f64| (a / b - 1.0).abs();
         assert!(
             rel(m.rmse_deg.mean, p.rmse_deg.mean) < 0.03,
