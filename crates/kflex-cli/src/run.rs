@@ -260,7 +260,7 @@ fn explain(args: &RunArgs, err: ControlError) -> anyhow::Error {
             )),
             "repeats" => Some(format!("--repeats {}", args.repeats)),
             "sheath_deg" => Some(format!("--sheath {}", num(r.value))),
-            "rel_std" => Some(format!("--spread {}", num(args.spread))),
+            "rel_std" | "spread" => Some(format!("--spread {}", num(args.spread))),
             _ => None,
         }),
     };

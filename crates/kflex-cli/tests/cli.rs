@@ -448,3 +448,17 @@ fn too_short_or_too_coarse_runs_name_the_flag() {
         }
     }
 }
+
+#[test]
+fn a_spread_outside_its_range_is_refused_naming_the_flag() {
+    // it used to run as 0 (identical plants) for a negative or NaN spread
+    for spread in ["-0.1", "NaN", "0.6"] {
+        let out = short_run(&["--spread", spread]);
+        assert!(!out.status.success(), "--spread {spread} was accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(&format!("--spread {spread}")) && err.contains("[0, 0.5]"),
+            "{err}"
+        );
+    }
+}

@@ -597,3 +597,38 @@ fn joint_follows_its_path_under_compressive_tip_loads() {
         }
     }
 }
+
+#[test]
+fn a_perturbed_config_reports_the_value_as_given() {
+    // the check runs before the spread is drawn: μ = −0.2 is reported as −0.2,
+    // not as the scaled −0.2029… a perturbed copy would have
+    let mut config = PlantConfig::default();
+    config.sheath.friction_coefficient = -0.2;
+    let err = config.perturbed(7, 0.15).unwrap_err();
+    let range = err.range().expect("a range error");
+    assert_eq!((range.name, range.value), ("friction_coefficient", -0.2));
+    // every physical parameter is spread, and the seating is drawn
+    let nominal = PlantConfig::default();
+    let p = nominal.perturbed(7, 0.15).unwrap();
+    let (s, n) = (p.sheath, nominal.sheath);
+    for (a, b) in [
+        (s.friction_coefficient, n.friction_coefficient),
+        (s.route_wrap_deg, n.route_wrap_deg),
+        (s.pretension_n, n.pretension_n),
+        (s.tendon_stiffness_n_per_mm, n.tendon_stiffness_n_per_mm),
+        (s.distal_stiffness_n_per_mm, n.distal_stiffness_n_per_mm),
+        (s.drive_backlash_mm, n.drive_backlash_mm),
+        (s.backlash_engagement_mm, n.backlash_engagement_mm),
+        (s.presliding_mm, n.presliding_mm),
+        (
+            p.joint.contact_stiffness_nmm_per_rad,
+            nominal.joint.contact_stiffness_nmm_per_rad,
+        ),
+    ] {
+        assert!(a != b && (a / b - 1.0).abs() <= 0.5, "{a} vs {b}");
+    }
+    assert!(p.seating != nominal.seating && p.seating.validate().is_ok());
+    // no spread: the nominal plant at rest
+    assert_eq!(nominal.perturbed(7, 0.0).unwrap(), nominal);
+    Plant::new(p).unwrap();
+}
