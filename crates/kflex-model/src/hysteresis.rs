@@ -166,15 +166,6 @@ impl BoucWen {
     /// current input, the mean of the two one-sided slopes.
     pub(crate) fn trial(&self, x: f64) -> (f64, f64) {
         let dx = x - self.x;
-        let p = &self.params;
-        if p.gamma == 0.0 && p.n == 1.0 && p.alpha == 0.0 && dx != 0.0 {
-            // Dahl's law (the tendon elements' case), closed form: z relaxes
-            // exponentially toward sign(dx)·A/β, and dz/dx = A − β sign(dx) z
-            let sign = dx.signum();
-            let bound = p.a / p.beta;
-            let z = sign * bound + (self.z - sign * bound) * (-p.beta * dx.abs()).exp();
-            return (z, p.a - p.beta * sign * z);
-        }
         let z = self.peek(x);
         let slope = if dx > 0.0 {
             self.slope(z, 1.0)
@@ -209,7 +200,9 @@ impl BoucWen {
     /// `dz/dx` at state `z` for motion in direction `sign` (±1).
     fn slope(&self, z: f64, sign: f64) -> f64 {
         let p = &self.params;
-        let zn = if p.n.fract() == 0.0 {
+        let zn = if p.n == 1.0 {
+            z.abs()
+        } else if p.n.fract() == 0.0 {
             z.abs().powi(p.n as i32)
         } else {
             z.abs().powf(p.n)
