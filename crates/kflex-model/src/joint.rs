@@ -196,35 +196,6 @@ pub(crate) fn anchors_mm(geometry: &TendonGeometry, theta: f64) -> (f64, f64) {
     (s - c, -s - c)
 }
 
-/// Residual of the generalised-force balance along θ (N·mm/rad), equal contact
-/// angles, and its slope, exact for the tendons through their condensed stiffness.
-fn balance(
-    geometry: &TendonGeometry,
-    joint: &JointParams,
-    sheath: &mut TendonSheath,
-    theta: f64,
-) -> (f64, f64) {
-    let two_n = 2.0 * f64::from(geometry.n_segments);
-    let phi = theta / two_n;
-    let (s, c) = phi.sin_cos();
-    let (w_a, w_b) = anchors_mm(geometry, theta);
-    let distal = sheath.solve(w_a, w_b);
-    let (d, rb) = (geometry.tendon_offset_mm, geometry.r_mm - geometry.b_mm);
-    // dw/dθ and d²w/dθ² of each anchor
-    let (wa1, wb1) = (d * c - rb * s, -d * c - rb * s);
-    let (wa2, wb2) = ((-d * s - rb * c) / two_n, (d * s - rb * c) / two_n);
-    let k = joint.contact_stiffness_nmm_per_rad;
-    let (ta, tb) = (distal.tension_a_n, distal.tension_b_n);
-    let residual =
-        ta * wa1 + tb * wb1 - k * phi + external_generalised_force(joint, two_n as usize, theta);
-    // slope, neglecting the slow variation of the external loads
-    let slope = -distal.stiffness_a_n_per_mm * wa1 * wa1 - distal.stiffness_b_n_per_mm * wb1 * wb1
-        + ta * wa2
-        + tb * wb2
-        - k / two_n;
-    (residual, slope)
-}
-
 /// Newton steps the coupled fast path may take before handing over.
 const NEWTON_STEPS: usize = 12;
 /// Largest move per tick the fast path accepts, rad: beyond it the path is
@@ -238,6 +209,16 @@ struct Anchors {
     curvature: [f64; 2],
 }
 
+impl Anchors {
+    /// The balance's slope along θ once the tendons answer with anchor
+    /// stiffnesses `ka`, `kb` (`−dT/dw`): `g_θ − k_a w_a'² − k_b w_b'²`.
+    fn condensed_slope(&self, slope_at_fixed_tensions: f64, ka: f64, kb: f64) -> f64 {
+        slope_at_fixed_tensions
+            - ka * self.slope[0] * self.slope[0]
+            - kb * self.slope[1] * self.slope[1]
+    }
+}
+
 fn anchors(geometry: &TendonGeometry, theta: f64) -> Anchors {
     let two_n = 2.0 * f64::from(geometry.n_segments);
     let (s, c) = (theta / two_n).sin_cos();
@@ -248,6 +229,51 @@ fn anchors(geometry: &TendonGeometry, theta: f64) -> Anchors {
         slope: [d * c - rb * s, -d * c - rb * s],
         curvature: [(-d * s - rb * c) / two_n, (d * s - rb * c) / two_n],
     }
+}
+
+/// Residual of the generalised-force balance along θ (N·mm/rad), equal contact
+/// angles, for anchor tensions `ta`, `tb` held fixed, and its slope along θ
+/// at those tensions (neglecting the slow variation of the external loads).
+fn balance_at(
+    joint: &JointParams,
+    two_n: f64,
+    an: &Anchors,
+    theta: f64,
+    ta: f64,
+    tb: f64,
+) -> (f64, f64) {
+    let k = joint.contact_stiffness_nmm_per_rad;
+    let residual = ta * an.slope[0] + tb * an.slope[1] - k * theta / two_n
+        + external_generalised_force(joint, two_n as usize, theta);
+    let slope = ta * an.curvature[0] + tb * an.curvature[1] - k / two_n;
+    (residual, slope)
+}
+
+/// The balance along θ with each tendon solved for its anchor there, and its
+/// slope, exact for the tendons through their condensed stiffness.
+fn balance(
+    geometry: &TendonGeometry,
+    joint: &JointParams,
+    sheath: &mut TendonSheath,
+    theta: f64,
+) -> (f64, f64) {
+    let two_n = 2.0 * f64::from(geometry.n_segments);
+    let an = anchors(geometry, theta);
+    let distal = sheath.solve(an.w[0], an.w[1]);
+    let (residual, slope) = balance_at(
+        joint,
+        two_n,
+        &an,
+        theta,
+        distal.tension_a_n,
+        distal.tension_b_n,
+    );
+    let condensed = an.condensed_slope(
+        slope,
+        distal.stiffness_a_n_per_mm,
+        distal.stiffness_b_n_per_mm,
+    );
+    (residual, condensed)
 }
 
 /// Quasi-static analytic solve: the bend θ (rad) at which the tendons, the
@@ -309,21 +335,18 @@ fn coupled_newton(
     max: f64,
 ) -> Option<f64> {
     let two_n = 2.0 * f64::from(geometry.n_segments);
-    let k = joint.contact_stiffness_nmm_per_rad;
     let (mut ta, mut tb) = sheath.extrapolated_tensions();
     let mut theta = guess;
     for _ in 0..NEWTON_STEPS {
         let an = anchors(geometry, theta);
         let (ma, mb) = sheath.march(ta, tb, an.w[0], an.w[1]);
-        let g = ta * an.slope[0] + tb * an.slope[1] - k * theta / two_n
-            + external_generalised_force(joint, two_n as usize, theta);
+        let (g, g_theta) = balance_at(joint, two_n, &an, theta, ta, tb);
         if !(g.is_finite() && ma.by_tension > 0.0 && mb.by_tension > 0.0) {
             return None;
         }
         // eliminate the tensions: ΔT = −(r + r_θ Δθ)/r_T, r_θ = r_w w'
         let (sa, sb) = (ma.by_anchor / ma.by_tension, mb.by_anchor / mb.by_tension);
-        let g_theta = ta * an.curvature[0] + tb * an.curvature[1] - k / two_n;
-        let slope = g_theta - sa * an.slope[0] * an.slope[0] - sb * an.slope[1] * an.slope[1];
+        let slope = an.condensed_slope(g_theta, sa, sb);
         // a stable balance only (NaN fails too)
         if slope.is_nan() || slope >= 0.0 {
             return None;

@@ -475,13 +475,16 @@ fn element_ratio(mu_dphi: f64, z: f64) -> (f64, f64) {
 /// and the loop grow with `μΦ` and with the load, by the mechanism.
 ///
 /// **Solving.** The transmission is quasi-static (tendon and motor inertia
-/// are negligible at the paper's 0.159 Hz). For given anchor positions each
-/// tendon's balances form a tridiagonal system, solved by Newton's method
-/// with the Thomas algorithm, each element's `z_i(u_i)` integrated exactly
-/// from its committed state (so nothing drifts between ticks). The joint sees
-/// the condensed result: the anchor tension and its stiffness `−dT/dw`, which
-/// gives its own Newton step the exact slope. Nothing moves until
-/// [`TendonSheath::commit`].
+/// are negligible at the paper's 0.159 Hz). For a given anchor position and
+/// anchor tension, one march from the anchor to the motor gives every
+/// element's position and tension in turn, each element's `z_i(u_i)`
+/// integrated exactly from its committed state (so nothing drifts between
+/// ticks). Where the march lands relative to the motor is strictly
+/// increasing in the anchor tension, so a bracketed Newton iteration on that
+/// one number solves the tendon. The joint sees the condensed result: the
+/// anchor tension and its stiffness `−dT/dw`, carried along the march as
+/// derivatives, which gives its own Newton step the exact slope. Nothing
+/// moves until [`TendonSheath::commit`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct TendonSheath {
     params: SheathParams,
@@ -638,16 +641,12 @@ impl TendonSheath {
         let (ka, ok_a) = self.a.solve(&chain, w_a_mm);
         let (kb, ok_b) = self.b.solve(&chain, w_b_mm);
         self.converged = ok_a && ok_b;
-        self.trial_distal(ka, kb)
-    }
-
-    fn trial_distal(&self, stiffness_a: f64, stiffness_b: f64) -> Distal {
         // a slack tendon's regularised tension (at most µN below zero) reads as 0
         Distal {
             tension_a_n: self.a.tension.max(0.0),
             tension_b_n: self.b.tension.max(0.0),
-            stiffness_a_n_per_mm: stiffness_a,
-            stiffness_b_n_per_mm: stiffness_b,
+            stiffness_a_n_per_mm: ka,
+            stiffness_b_n_per_mm: kb,
         }
     }
 
