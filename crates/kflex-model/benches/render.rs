@@ -1,23 +1,19 @@
 //! Silhouette throughput. `cargo bench -p kflex-model --bench render`
-//! Goal (issue 3): ≥ 20,000 48×48 silhouettes per second on one core.
+//! Goal (camera v2): ≥ 30,000 48×48 silhouettes per second on one core.
 
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use kflex_model::Camera;
 use kflex_model::Instrument;
-use kflex_model::{Mask, Rasterizer};
+use kflex_model::{Mask, Rasterizer, Roi};
 
 fn silhouettes(c: &mut Criterion) {
     let instrument = Instrument::kflex();
     let camera = Camera::default();
     // a 48×48 region of interest around the working range, as IBJAE uses
-    let roi = camera.with_intrinsics(
-        camera
-            .intrinsics
-            .region(250.0, 330.0, 150.0, 150.0, 48, 48)
-            .expect("roi"),
-    );
+    let working = Roi::working(&camera).expect("working region");
+    let roi = camera.with_intrinsics(working.intrinsics(&camera.intrinsics, 48, 48).expect("roi"));
     let mut shape = instrument.shape(0.0, 10.0).expect("shape");
     let mut raster = Rasterizer::new();
     let mut mask = Mask::new(48, 48).expect("mask");

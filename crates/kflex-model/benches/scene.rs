@@ -1,12 +1,14 @@
 //! Shaded frame throughput. `cargo bench -p kflex-model --bench scene`
-//! Goal (issue 3): ≥ 200 shaded 640×480 frames per second on one core.
+//! Goals (camera v2) on one core: ≥ 300 shaded 640×480 frames per second
+//! with every realism feature on, and ≥ 1,500 per second of the region of
+//! interest alone (`render_window` of `Roi::working`).
 
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use kflex_model::Camera;
 use kflex_model::Instrument;
-use kflex_model::{FrameParams, Occlusion, SceneRenderer};
+use kflex_model::{FrameParams, Occlusion, Roi, SceneRenderer};
 
 fn frames(c: &mut Criterion) {
     let instrument = Instrument::kflex();
@@ -27,6 +29,20 @@ fn frames(c: &mut Criterion) {
             black_box(
                 renderer
                     .render(&camera, &shape, &params)
+                    .expect("frame")
+                    .rgb
+                    .len(),
+            )
+        })
+    });
+    let roi = Roi::working(&camera).expect("working region");
+    c.bench_function("shaded_roi", |b| {
+        b.iter(|| {
+            theta = (theta + 0.37) % 50.0;
+            let shape = instrument.shape(theta, 10.0).expect("shape");
+            black_box(
+                renderer
+                    .render_window(&camera, &shape, &params, roi)
                     .expect("frame")
                     .rgb
                     .len(),

@@ -123,45 +123,173 @@ impl Intrinsics {
     }
 }
 
-/// A camera: intrinsics and where it sits relative to the overtube.
+/// The lens of a wide-angle endoscope: barrel distortion and vignetting.
+///
+/// Distortion follows the one-parameter division model (Fitzgibbon, CVPR
+/// 2001), common for endoscopes because it is inverted in closed form. In
+/// normalised image coordinates `x_d = (u − c_x)/f_x`, `y_d = (v − c_y)/f_y`,
+/// a pixel at radius `r_d` sees the pinhole direction
+/// `(x_u, y_u) = (x_d, y_d) / (1 + λ r_d²)` (the ray `(x_u, y_u, 1)`);
+/// `λ < 0` is barrel distortion. The inverse (projection) is
+/// `r_d = 2 r_u / (1 + √(1 − 4 λ r_u²))`. A region of interest keeps the
+/// normalised coordinates ([`Intrinsics::region`]), so one `λ` serves the
+/// full frame and every region of it.
+///
+/// Vignetting scales the light reaching the sensor by `(1 + κ r_d²)^−2`.
+///
+/// Defaults (`λ = −0.15`, `κ = 0.2`): the default 640×480 camera
+/// ([`Intrinsics::default`]) then sees 113° across and 132° on the diagonal,
+/// as wide-angle endoscopes do (120–140° diagonal is typical), with the
+/// corners at 48 % of the centre's illumination.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Lens {
+    /// Division-model coefficient `λ` (dimensionless, on normalised
+    /// coordinates); 0 for a pinhole, negative for barrel distortion.
+    pub division: f64,
+    /// Vignetting coefficient `κ`; 0 for none.
+    pub vignetting: f64,
+}
+
+impl Default for Lens {
+    fn default() -> Self {
+        Self {
+            division: -0.15,
+            vignetting: 0.2,
+        }
+    }
+}
+
+/// Smallest `1 + λ r_d²` anywhere in an image: keeps every pixel's ray well
+/// inside the forward half-space (a field of view below 180°).
+const MIN_DIVISION_FACTOR: f64 = 0.2;
+
+impl Lens {
+    /// An ideal pinhole: no distortion, no vignetting.
+    pub const PINHOLE: Lens = Lens {
+        division: 0.0,
+        vignetting: 0.0,
+    };
+
+    /// Checks the coefficients for an image with intrinsics `k`.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming `lens.division` when it is outside
+    /// `[λ_min, 0]`, where `λ_min` keeps `1 + λ r_d² ≥ 0.2` at the image's
+    /// corners (so every pixel's ray points forward), or `lens.vignetting`
+    /// outside `[0, 10]`.
+    ///
+    /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
+    pub fn validate(&self, k: &Intrinsics) -> Result<()> {
+        let corner = |u: f64, v: f64| {
+            let (x, y) = ((u - k.cx) / k.fx, (v - k.cy) / k.fy);
+            x * x + y * y
+        };
+        let (w, h) = (f64::from(k.width), f64::from(k.height));
+        let r2 = corner(0.0, 0.0)
+            .max(corner(w, 0.0))
+            .max(corner(0.0, h))
+            .max(corner(w, h));
+        let lowest = if r2 > 0.0 {
+            -(1.0 - MIN_DIVISION_FACTOR) / r2
+        } else {
+            -1.0
+        };
+        Bounds::closed(lowest, 0.0).check("lens.division", self.division)?;
+        Bounds::closed(0.0, 10.0).check("lens.vignetting", self.vignetting)?;
+        Ok(())
+    }
+
+    /// The pinhole direction `(x_u, y_u)` seen at normalised distorted coordinates `(x_d, y_d)`.
+    #[inline]
+    #[must_use]
+    pub fn undistort(&self, xd: f64, yd: f64) -> [f64; 2] {
+        let s = 1.0 / (1.0 + self.division * (xd * xd + yd * yd));
+        [xd * s, yd * s]
+    }
+
+    /// Normalised distorted coordinates of the pinhole direction `(x_u, y_u)`.
+    #[inline]
+    #[must_use]
+    pub fn distort(&self, xu: f64, yu: f64) -> [f64; 2] {
+        let ru2 = xu * xu + yu * yu;
+        let s = 2.0 / (1.0 + (1.0 - 4.0 * self.division * ru2).max(0.0).sqrt());
+        [xu * s, yu * s]
+    }
+
+    /// Relative illumination at normalised distorted coordinates `(x_d, y_d)`, in (0, 1].
+    #[inline]
+    #[must_use]
+    pub fn illumination(&self, xd: f64, yd: f64) -> f64 {
+        let q = 1.0 + self.vignetting * (xd * xd + yd * yd);
+        1.0 / (q * q)
+    }
+}
+
+/// A camera: intrinsics, lens and where it sits relative to the overtube.
 ///
 /// Pixel convention: pixel `(i, j)` covers `[i, i+1) × [j, j+1)` and its centre is
 /// `(i + 0.5, j + 0.5)`; a point `(x, y, z)` in the camera frame (x right, y down,
-/// z forward, mm) projects to `u = f_x x/z + c_x`, `v = f_y y/z + c_y`.
+/// z forward, mm) has the pinhole direction `(x/z, y/z)`, which the lens
+/// ([`Lens`]) bends to `(x_d, y_d)`, at pixel `u = f_x x_d + c_x`,
+/// `v = f_y y_d + c_y`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
     /// Intrinsics.
     pub intrinsics: Intrinsics,
+    /// Lens distortion and vignetting.
+    pub lens: Lens,
     /// Maps overtube coordinates to camera coordinates (mm).
     pub camera_from_overtube: Isometry3<f64>,
 }
 
 impl Default for Camera {
-    /// At the centre of the overtube's face, looking along it.
+    /// At the centre of the overtube's face, looking along it, with the default lens.
     fn default() -> Self {
         Self {
             intrinsics: Intrinsics::default(),
+            lens: Lens::default(),
             camera_from_overtube: Isometry3::identity(),
         }
     }
 }
 
 impl Camera {
+    /// Checks the intrinsics, then the lens for them.
+    ///
+    /// # Errors
+    /// As [`Intrinsics::validate`], then [`Lens::validate`].
+    pub fn validate(&self) -> Result<()> {
+        self.intrinsics.validate()?;
+        self.lens.validate(&self.intrinsics)
+    }
+
     /// Projects a point given in the overtube frame; `None` if it is not in front of the camera.
     #[must_use]
     pub fn project(&self, p_overtube: [f64; 3]) -> Option<[f64; 2]> {
         let p = self.camera_from_overtube * Point3::from(p_overtube);
         (p.z > 1e-9).then(|| {
             let k = &self.intrinsics;
-            [k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy]
+            let [xd, yd] = self.lens.distort(p.x / p.z, p.y / p.z);
+            [k.fx * xd + k.cx, k.fy * yd + k.cy]
         })
     }
 
-    /// The ray through pixel position `(u, v)` in the camera frame (unnormalised direction).
+    /// The ray through pixel position `(u, v)` in the camera frame
+    /// (unnormalised direction, `z = 1`).
+    #[inline]
     #[must_use]
     pub fn ray_direction(&self, u: f64, v: f64) -> [f64; 3] {
         let k = &self.intrinsics;
-        [(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0]
+        let [x, y] = self.lens.undistort((u - k.cx) / k.fx, (v - k.cy) / k.fy);
+        [x, y, 1.0]
+    }
+
+    /// The lens's relative illumination at pixel position `(u, v)`.
+    #[must_use]
+    pub fn illumination(&self, u: f64, v: f64) -> f64 {
+        let k = &self.intrinsics;
+        self.lens.illumination((u - k.cx) / k.fx, (v - k.cy) / k.fy)
     }
 
     /// The same camera with other intrinsics (e.g. a region of interest).

@@ -52,53 +52,92 @@ impl InstrumentParams {
     }
 }
 
-/// Which part of the instrument a capsule belongs to.
+/// Which part of the instrument a body belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Part {
     /// The straight shaft out of the channel.
     Shaft,
-    /// Link `j` of the bending joint, 0 proximal.
+    /// Link `j` of the bending joint, 0 proximal: its disc and the piece of
+    /// the backbone (tendons and spine) through it.
     Link(u8),
+    /// The gripper's clevis: the housing behind the jaws and the pivot pin.
+    Clevis,
     /// Gripper jaw 0 or 1.
     Jaw(u8),
 }
 
-/// A capsule: all points within `radius_mm` of the segment `a_mm`–`b_mm` (overtube frame, mm).
+/// How a body's ends are closed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Ends {
+    /// Hemispheres: a capsule.
+    Round,
+    /// Flat discs: a cylinder.
+    Flat,
+}
+
+/// A body of revolution: all points within `radius_mm` of the segment
+/// `a_mm`–`b_mm` (overtube frame, mm), its ends rounded (a capsule) or cut
+/// flat (a cylinder).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Capsule {
+pub struct Body {
     /// Proximal end of the axis, mm.
     pub a_mm: [f64; 3],
     /// Distal end of the axis, mm.
     pub b_mm: [f64; 3],
     /// Radius, mm.
     pub radius_mm: f64,
-    /// Whether the proximal end is capped by a hemisphere (false where it sits inside the channel).
-    pub cap_a: bool,
+    /// Rounded or flat ends.
+    pub ends: Ends,
     /// Which part it is.
     pub part: Part,
+    /// Arc length along the instrument's centre line at `a_mm` and at
+    /// `b_mm`, from the channel's exit, mm (what tape bands are placed by).
+    pub arc_mm: [f64; 2],
 }
 
-/// The instrument's shape at one pose: capsules from the channel to the jaw tips.
+/// The instrument's shape at one pose: bodies from the channel to the jaw tips.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct InstrumentShape {
-    /// Capsules, proximal first.
-    pub capsules: Vec<Capsule>,
+    /// Bodies, proximal first.
+    pub bodies: Vec<Body>,
     /// The tool tip (mid-point between the jaw tips), overtube frame, mm.
     pub tip_mm: [f64; 3],
 }
+
+/// Axial gap between neighbouring discs of the joint, as a share of a link's length.
+const DISC_GAP: f64 = 0.2;
+/// Radius of the backbone (tendons and spine) seen through the gaps, as a share of the links'.
+const BACKBONE: f64 = 0.45;
+/// Length of the clevis (jaw housing up to the pivot), as a share of the tool's length.
+const CLEVIS: f64 = 0.3;
+/// Radius of the clevis, as a share of the links'.
+const CLEVIS_RADIUS: f64 = 0.8;
+/// Radius and half-length of the pivot pin, as shares of the links' radius.
+const PIN_RADIUS: f64 = 0.3;
+const PIN_HALF_LENGTH: f64 = 0.9;
+/// Where a jaw's heel ends, as a share of its length, and its tip's radius as a share of the heel's.
+const JAW_HEEL: f64 = 0.5;
+const JAW_TIP: f64 = 0.55;
 
 /// Builds shapes from (θ, d), checking both against the workspace.
 ///
 /// One definition serves the rasterizer and the mechanics: the bending joint's
 /// links are [`JointParams`]'s (`2n` links of `link_length_mm`, radius
 /// `link_radius_mm`, equal contact angles `θ/2n` as in Eq. 1), the tool is
-/// [`JointParams::tool_length_mm`] long. The shape is a set of capsules in the
+/// [`JointParams::tool_length_mm`] long. The shape is a set of [`Body`]s in the
 /// **overtube frame**: origin at the centre of the overtube's distal face, `+z`
 /// along the overtube (the view direction of the camera mounted there), `+y`
 /// down in the image, `+x` right. The instrument channel exits the face at
 /// [`InstrumentParams::channel_offset_mm`]; the instrument's shaft extends `d`
 /// from it; the joint bends about `+y`, so positive θ swings the tip toward `+x`.
 /// The gripper's two jaws open symmetrically in the plane across the bend.
+///
+/// What a surgeon would recognise: each link is a disc (a flat-ended
+/// cylinder) a fifth of a link shorter than the link, so neighbouring discs
+/// leave a gap that opens on the outside of the bend, with the backbone
+/// (tendons and spine, 0.45 of the links' radius) across it; the tool is a
+/// clevis (0.3 of the tool's length) carrying a pivot pin, and two jaws that
+/// taper from heel to tip, hinged at the pin.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Instrument {
     /// Joint and tool dimensions (shared with the mechanics).
@@ -175,7 +214,7 @@ impl Instrument {
     /// [`ModelError::OutOfWorkspace`]: crate::ModelError::OutOfWorkspace
     pub fn shape(&self, theta_deg: f64, translation_mm: f64) -> Result<InstrumentShape> {
         let mut out = InstrumentShape {
-            capsules: Vec::with_capacity(2 * self.n_segments as usize + 3),
+            bodies: Vec::with_capacity(4 * self.n_segments as usize + 7),
             tip_mm: [0.0; 3],
         };
         self.shape_into(theta_deg, translation_mm, &mut out)?;
@@ -203,43 +242,98 @@ impl Instrument {
         let two_n = 2 * self.n_segments as usize;
         let phi = theta_deg.to_radians() / two_n as f64;
         let l = self.joint.link_length_mm;
-        out.capsules.clear();
+        let r = self.joint.link_radius_mm;
+        out.bodies.clear();
         let mut p = [ox, oy, translation_mm];
-        out.capsules.push(Capsule {
+        out.bodies.push(Body {
             a_mm: [ox, oy, 0.0],
             b_mm: p,
             radius_mm: self.params.shaft_radius_mm,
-            cap_a: false,
+            ends: Ends::Flat,
             part: Part::Shaft,
+            arc_mm: [0.0, translation_mm],
         });
+        let along = |p: [f64; 3], dir: [f64; 3], t: f64| {
+            [p[0] + t * dir[0], p[1] + t * dir[1], p[2] + t * dir[2]]
+        };
+        let mut arc = translation_mm;
         let mut heading = 0.0;
+        let gap = DISC_GAP * l;
         for j in 0..two_n {
             heading += phi;
-            let next = [p[0] + l * heading.sin(), p[1], p[2] + l * heading.cos()];
-            out.capsules.push(Capsule {
+            let dir = [heading.sin(), 0.0, heading.cos()];
+            let next = along(p, dir, l);
+            // the link's disc, short of its contacts by half a gap at each end
+            out.bodies.push(Body {
+                a_mm: along(p, dir, 0.5 * gap),
+                b_mm: along(p, dir, l - 0.5 * gap),
+                radius_mm: r,
+                ends: Ends::Flat,
+                part: Part::Link(j as u8),
+                arc_mm: [arc + 0.5 * gap, arc + l - 0.5 * gap],
+            });
+            // the backbone through it, seen in the gaps
+            out.bodies.push(Body {
                 a_mm: p,
                 b_mm: next,
-                radius_mm: self.joint.link_radius_mm,
-                cap_a: true,
+                radius_mm: BACKBONE * r,
+                ends: Ends::Round,
                 part: Part::Link(j as u8),
+                arc_mm: [arc, arc + l],
             });
             p = next;
+            arc += l;
         }
-        let half = 0.5 * self.params.jaw_opening_deg.to_radians();
-        let lt = self.joint.tool_length_mm;
         let (s, c) = heading.sin_cos();
+        let h = [s, 0.0, c];
+        let lt = self.joint.tool_length_mm;
+        let (clevis, jaw) = (CLEVIS * lt, (1.0 - CLEVIS) * lt);
+        let pivot = along(p, h, clevis);
+        out.bodies.push(Body {
+            a_mm: p,
+            b_mm: pivot,
+            radius_mm: CLEVIS_RADIUS * r,
+            ends: Ends::Flat,
+            part: Part::Clevis,
+            arc_mm: [arc, arc + clevis],
+        });
+        // the pin, across the plane the jaws open in
+        let pin = [c, 0.0, -s];
+        let half_pin = PIN_HALF_LENGTH * r;
+        out.bodies.push(Body {
+            a_mm: along(pivot, pin, -half_pin),
+            b_mm: along(pivot, pin, half_pin),
+            radius_mm: PIN_RADIUS * r,
+            ends: Ends::Flat,
+            part: Part::Clevis,
+            arc_mm: [arc + clevis, arc + clevis],
+        });
+        arc += clevis;
+        let half = 0.5 * self.params.jaw_opening_deg.to_radians();
+        let rj = self.params.jaw_radius_mm;
         for (k, side) in [(0u8, -1.0f64), (1, 1.0)] {
             let dir = [s * half.cos(), side * half.sin(), c * half.cos()];
-            let end = [p[0] + lt * dir[0], p[1] + lt * dir[1], p[2] + lt * dir[2]];
-            out.capsules.push(Capsule {
-                a_mm: p,
-                b_mm: end,
-                radius_mm: self.params.jaw_radius_mm,
-                cap_a: true,
+            let mid = along(pivot, dir, JAW_HEEL * jaw);
+            let end = along(pivot, dir, jaw);
+            // a jaw tapers from its heel to its tip
+            out.bodies.push(Body {
+                a_mm: pivot,
+                b_mm: mid,
+                radius_mm: rj,
+                ends: Ends::Round,
                 part: Part::Jaw(k),
+                arc_mm: [arc, arc + JAW_HEEL * jaw],
+            });
+            out.bodies.push(Body {
+                a_mm: mid,
+                b_mm: end,
+                radius_mm: JAW_TIP * rj,
+                ends: Ends::Round,
+                part: Part::Jaw(k),
+                arc_mm: [arc + JAW_HEEL * jaw, arc + jaw],
             });
         }
-        out.tip_mm = [p[0] + lt * half.cos() * s, p[1], p[2] + lt * half.cos() * c];
+        out.tip_mm = along(pivot, h, jaw * half.cos());
         Ok(())
     }
 }

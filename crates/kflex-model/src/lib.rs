@@ -70,10 +70,10 @@ mod transmission;
 mod working;
 mod workspace;
 
-pub use camera::{Camera, Intrinsics};
+pub use camera::{Camera, Intrinsics, Lens};
 pub use error::{ModelError, Result};
 pub use hysteresis::{Backlash, BoucWen, BoucWenParams, Play};
-pub use instrument::{Capsule, Instrument, InstrumentParams, InstrumentShape, Part};
+pub use instrument::{Body, Ends, Instrument, InstrumentParams, InstrumentShape, Part};
 pub use joint::{JointModelKind, JointParams};
 pub use kinematics::TendonGeometry;
 pub use mask::Mask;

@@ -186,12 +186,8 @@ impl Mask {
         Ok(())
     }
 
-    /// Sets pixels `first..=last` of the row-major buffer.
-    pub(crate) fn fill_span(&mut self, first: usize, last: usize) {
-        self.data[first..=last].fill(1);
-    }
-
-    pub(crate) fn set(&mut self, x: usize, y: usize) {
-        self.data[y * self.width as usize + x] = 1;
+    /// Sets pixel `i` of the row-major buffer.
+    pub(crate) fn set_index(&mut self, i: usize) {
+        self.data[i] = 1;
     }
 }

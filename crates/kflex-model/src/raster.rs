@@ -1,27 +1,56 @@
-//! Software rasterizer: binary silhouettes of the instrument.
+//! Ray caster: binary silhouettes of the instrument and the surface point
+//! behind each pixel, for any camera lens and any window of the image.
 
-use crate::camera::{Camera, Intrinsics};
+use crate::camera::Camera;
 use crate::error::{ModelError, Result};
-use crate::instrument::InstrumentShape;
+use crate::instrument::{Ends, InstrumentShape, Part};
 use crate::mask::Mask;
+use crate::roi::Roi;
 use nalgebra::{Point3, Vector3};
 
-/// Sides of the prism that stands for each cylinder.
-const CYLINDER_SIDES: usize = 16;
-/// Near clipping distance, mm: geometry closer to the camera is not drawn.
-const Z_NEAR: f64 = 0.5;
+/// Side of a coarse tile, px: each is culled against every body.
+const COARSE: u32 = 32;
+/// Side of a fine tile, px: each is culled against its coarse tile's bodies.
+const FINE: u32 = 8;
 
-/// Reusable rasterizer state.
+/// Reusable ray caster.
 ///
-/// Each capsule is drawn as its cylinder — a prism of 16 sides
-/// whose cross-section has the circle's area — plus its end spheres, which are
-/// filled exactly (a pixel is inside where the ray through its centre meets the
-/// sphere). Triangles are clipped 0.5 mm in front of the camera and filled where the pixel
-/// centre lies inside or on their edges. No GPU, no allocation per frame once
-/// the [`Rasterizer`]'s buffers have grown.
+/// A pixel is instrument where the ray through its centre (bent by the
+/// camera's [`Lens`](crate::Lens)) meets a body of the shape: exact
+/// closed-form hits with cylinders, their flat end discs and the end spheres
+/// of capsules, so silhouettes are exact at any size and any pose, with no
+/// dilation and no polygon facets. Rays are cast only where they can hit:
+/// the image is cut into 32 px tiles, each culled against every body by the
+/// cone its rays span, and 8 px tiles inside them against the bodies left.
+/// A window of the image ([`Rasterizer::silhouette_window`]) costs its own
+/// area and gives exactly the pixels of the full image's crop. No allocation
+/// per frame once the [`Rasterizer`]'s buffers have grown.
 #[derive(Debug, Default, Clone)]
 pub struct Rasterizer {
-    triangles: Vec<[Vector3<f64>; 3]>,
+    scene: Scene,
+    coarse: Vec<u16>,
+    fine: Vec<u16>,
+}
+
+/// The shape's bodies in the camera frame.
+#[derive(Debug, Default, Clone)]
+pub(crate) struct Scene {
+    pub(crate) bodies: Vec<CameraBody>,
+}
+
+/// Where a ray meets a body first.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SurfaceHit {
+    /// Distance along the unit ray, mm.
+    pub(crate) t: f64,
+    /// Index of the body in the shape.
+    pub(crate) body: usize,
+    /// Outward unit normal, camera frame.
+    pub(crate) normal: Vector3<f64>,
+    /// Arc length along the instrument, mm.
+    pub(crate) arc_mm: f64,
+    /// Whether the ray meets an end (a flat disc or an end sphere), not the side.
+    pub(crate) on_end: bool,
 }
 
 impl Rasterizer {
@@ -36,7 +65,8 @@ impl Rasterizer {
     ///
     /// # Errors
     /// [`ModelError::ImageSize`] when `mask` is not the camera's
-    /// `width × height`; nothing is drawn then.
+    /// `width × height`; as [`crate::Camera::validate`] for a bad camera.
+    /// Nothing is drawn then.
     pub fn silhouette(
         &mut self,
         camera: &Camera,
@@ -44,156 +74,359 @@ impl Rasterizer {
         mask: &mut Mask,
     ) -> Result<()> {
         let k = &camera.intrinsics;
-        if (mask.width(), mask.height()) != (k.width, k.height) {
+        let full = Roi {
+            x0: 0,
+            y0: 0,
+            width: k.width,
+            height: k.height,
+        };
+        self.silhouette_window(camera, shape, full, mask)
+    }
+
+    /// The silhouette of `shape` inside `window` of `camera`'s image, into
+    /// `mask` (of the window's size): exactly the window's crop of
+    /// [`Rasterizer::silhouette`]'s image, at a cost proportional to the
+    /// window's area. Pixels already set stay set.
+    ///
+    /// # Errors
+    /// As [`Roi::check_within`] for a window outside the image;
+    /// [`ModelError::ImageSize`] when `mask` is not the window's size; as
+    /// [`crate::Camera::validate`] for a bad camera. Nothing is drawn then.
+    pub fn silhouette_window(
+        &mut self,
+        camera: &Camera,
+        shape: &InstrumentShape,
+        window: Roi,
+        mask: &mut Mask,
+    ) -> Result<()> {
+        camera.validate()?;
+        let k = &camera.intrinsics;
+        window.check_within(k.width, k.height)?;
+        if (mask.width(), mask.height()) != (window.width, window.height) {
             return Err(ModelError::ImageSize {
-                what: "mask for this camera",
-                width: k.width,
-                height: k.height,
-                expected: k.width as usize * k.height as usize,
+                what: "mask for this window",
+                width: window.width,
+                height: window.height,
+                expected: window.area() as usize,
                 got: mask.data().len(),
             });
         }
-        let area_radius = ((std::f64::consts::TAU / CYLINDER_SIDES as f64)
-            / (std::f64::consts::TAU / CYLINDER_SIDES as f64).sin())
-        .sqrt();
-        for c in &shape.capsules {
-            let a = (camera.camera_from_overtube * Point3::from(c.a_mm)).coords;
-            let b = (camera.camera_from_overtube * Point3::from(c.b_mm)).coords;
-            self.triangles.clear();
-            prism(a, b, c.radius_mm * area_radius, &mut self.triangles);
-            for tri in &self.triangles {
-                fill_clipped(camera, tri, mask);
+        self.prepare(camera, shape);
+        let w = window.width as usize;
+        self.tiles(camera, window, |scene, [x0, y0, x1, y1], candidates| {
+            for y in y0..y1 {
+                let row = (y - window.y0) as usize * w;
+                for x in x0..x1 {
+                    let d = unit_ray(camera, f64::from(x) + 0.5, f64::from(y) + 0.5);
+                    if scene.any_hit(candidates, &d) {
+                        mask.set_index(row + (x - window.x0) as usize);
+                    }
+                }
             }
-            if c.cap_a {
-                fill_sphere(camera, a, c.radius_mm, mask);
-            }
-            fill_sphere(camera, b, c.radius_mm, mask);
-        }
+        });
         Ok(())
     }
-}
 
-/// Side triangles of a prism of radius `r` around segment `a`–`b`.
-fn prism(a: Vector3<f64>, b: Vector3<f64>, r: f64, out: &mut Vec<[Vector3<f64>; 3]>) {
-    let axis = b - a;
-    if axis.norm() < 1e-12 {
-        return; // a sphere only
+    /// Puts `shape`'s bodies into `camera`'s frame.
+    pub(crate) fn prepare(&mut self, camera: &Camera, shape: &InstrumentShape) {
+        self.scene.bodies.clear();
+        self.scene.bodies.extend(shape.bodies.iter().map(|b| {
+            let to = |p: [f64; 3]| (camera.camera_from_overtube * Point3::from(p)).coords;
+            CameraBody::new(
+                to(b.a_mm),
+                to(b.b_mm),
+                b.radius_mm,
+                b.ends,
+                b.part,
+                b.arc_mm,
+            )
+        }));
     }
-    let dir = axis.normalize();
-    let helper = if dir.x.abs() < 0.9 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    let u = dir.cross(&helper).normalize();
-    let w = dir.cross(&u);
-    let ring = |k: usize| {
-        let t = std::f64::consts::TAU * k as f64 / CYLINDER_SIDES as f64;
-        (u * t.cos() + w * t.sin()) * r
-    };
-    let mut prev = ring(0);
-    for k in 1..=CYLINDER_SIDES {
-        let next = ring(k % CYLINDER_SIDES);
-        out.push([a + prev, b + prev, b + next]);
-        out.push([a + prev, b + next, a + next]);
-        prev = next;
-    }
-}
 
-/// Clips a camera-frame triangle at `z = Z_NEAR` and fills what is left.
-fn fill_clipped(camera: &Camera, tri: &[Vector3<f64>; 3], mask: &mut Mask) {
-    let inside = tri.map(|p| p.z >= Z_NEAR);
-    if inside.iter().all(|&i| i) {
-        fill_triangle(camera, tri, mask);
-        return;
-    }
-    if !inside.iter().any(|&i| i) {
-        return;
-    }
-    // Sutherland–Hodgman against one plane: at most four vertices
-    let mut poly = [Vector3::zeros(); 4];
-    let mut n = 0;
-    for i in 0..3 {
-        let (p, q) = (tri[i], tri[(i + 1) % 3]);
-        let (ip, iq) = (inside[i], inside[(i + 1) % 3]);
-        if ip {
-            poly[n] = p;
-            n += 1;
+    /// Calls `f` for every fine tile of `window` (pixel box `[x0, y0, x1,
+    /// y1)` in the full image's coordinates) that some body may cover, with
+    /// the indices of those bodies. Tiles are aligned to the full image, so
+    /// the culling does not depend on the window.
+    pub(crate) fn tiles(
+        &mut self,
+        camera: &Camera,
+        window: Roi,
+        mut f: impl FnMut(&Scene, [u32; 4], &[u16]),
+    ) {
+        let (wx0, wy0) = (window.x0, window.y0);
+        let (wx1, wy1) = (wx0 + window.width, wy0 + window.height);
+        let all = self.scene.bodies.len().min(usize::from(u16::MAX)) as u16;
+        let mut cy = wy0 / COARSE * COARSE;
+        while cy < wy1 {
+            let mut cx = wx0 / COARSE * COARSE;
+            while cx < wx1 {
+                let cone = Cone::of(camera, [cx, cy, cx + COARSE, cy + COARSE]);
+                self.coarse.clear();
+                self.coarse.extend(
+                    (0..all).filter(|&i| self.scene.bodies[usize::from(i)].may_meet(&cone)),
+                );
+                if !self.coarse.is_empty() {
+                    let (ex, ey) = ((cx + COARSE).min(wx1), (cy + COARSE).min(wy1));
+                    let mut fy = cy.max(wy0) / FINE * FINE;
+                    while fy < ey {
+                        let mut fx = cx.max(wx0) / FINE * FINE;
+                        while fx < ex {
+                            let cone = Cone::of(camera, [fx, fy, fx + FINE, fy + FINE]);
+                            self.fine.clear();
+                            self.fine.extend(
+                                self.coarse
+                                    .iter()
+                                    .copied()
+                                    .filter(|&i| self.scene.bodies[usize::from(i)].may_meet(&cone)),
+                            );
+                            if !self.fine.is_empty() {
+                                let tile = [
+                                    fx.max(wx0),
+                                    fy.max(wy0),
+                                    (fx + FINE).min(ex),
+                                    (fy + FINE).min(ey),
+                                ];
+                                f(&self.scene, tile, &self.fine);
+                            }
+                            fx += FINE;
+                        }
+                        fy += FINE;
+                    }
+                }
+                cx += COARSE;
+            }
+            cy += COARSE;
         }
-        if ip != iq {
-            let t = (Z_NEAR - p.z) / (q.z - p.z);
-            poly[n] = p + (q - p) * t;
-            n += 1;
-        }
-    }
-    for i in 1..n.saturating_sub(1) {
-        fill_triangle(camera, &[poly[0], poly[i], poly[i + 1]], mask);
     }
 }
 
-fn fill_triangle(camera: &Camera, tri: &[Vector3<f64>; 3], mask: &mut Mask) {
-    let k = &camera.intrinsics;
-    let proj = tri.map(|p| [k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy]);
-    let [p0, p1, p2] = proj;
-    let area = (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p1[1] - p0[1]) * (p2[0] - p0[0]);
-    // back faces of the prism project inside its front faces and the end spheres: skip them
-    if area.is_nan() || area <= 1e-12 {
-        return;
+/// The unit ray through pixel position `(u, v)`, camera frame.
+#[inline]
+pub(crate) fn unit_ray(camera: &Camera, u: f64, v: f64) -> Vector3<f64> {
+    let [x, y, z] = camera.ray_direction(u, v);
+    Vector3::new(x, y, z).normalize()
+}
+
+/// The cone of rays through a pixel box: its axis and the sine of its half-angle.
+struct Cone {
+    axis: Vector3<f64>,
+    sin_half: f64,
+}
+
+impl Cone {
+    /// The cone through the box `[x0, y0, x1, y1)` (pixel edges, full image).
+    fn of(camera: &Camera, [x0, y0, x1, y1]: [u32; 4]) -> Cone {
+        let (x0, y0, x1, y1) = (f64::from(x0), f64::from(y0), f64::from(x1), f64::from(y1));
+        let (xm, ym) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+        let axis = unit_ray(camera, xm, ym);
+        // the widest ray of the box is on its rim: corners and mid-edges
+        // (the lens bends the rim only slightly over a tile)
+        let mut cos = 1.0f64;
+        for (u, v) in [
+            (x0, y0),
+            (x1, y0),
+            (x0, y1),
+            (x1, y1),
+            (xm, y0),
+            (xm, y1),
+            (x0, ym),
+            (x1, ym),
+        ] {
+            cos = cos.min(axis.dot(&unit_ray(camera, u, v)));
+        }
+        let sin = (1.0 - cos * cos).max(0.0).sqrt();
+        Cone {
+            axis,
+            sin_half: sin * 1.05 + 1e-9,
+        }
     }
-    let (w, h) = (f64::from(k.width), f64::from(k.height));
-    let y_lo = proj
-        .iter()
-        .map(|p| p[1])
-        .fold(f64::MAX, f64::min)
-        .floor()
-        .max(0.0);
-    let y_hi = proj
-        .iter()
-        .map(|p| p[1])
-        .fold(f64::MIN, f64::max)
-        .ceil()
-        .min(h);
-    if y_lo >= y_hi {
-        return;
+}
+
+/// A body in the camera frame, ready for rays from the camera centre.
+#[derive(Debug, Clone)]
+pub(crate) struct CameraBody {
+    a: Vector3<f64>,
+    b: Vector3<f64>,
+    r: f64,
+    pub(crate) ends: Ends,
+    pub(crate) part: Part,
+    arc: [f64; 2],
+    /// Unit axis from `a` to `b`, and the length.
+    axis: Vector3<f64>,
+    len: f64,
+    /// `a · axis`.
+    a_axis: f64,
+    /// The part of `−a` across the axis, and its squared length less `r²`.
+    across: Vector3<f64>,
+    across_c: f64,
+    /// `|a|² − r²` and `|b|² − r²`, for the end spheres.
+    spheres: [f64; 2],
+    /// The farthest distance of any of its points from the camera, bounded.
+    far: f64,
+}
+
+/// Which surface of a body a ray meets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Surface {
+    Side,
+    EndA,
+    EndB,
+}
+
+impl CameraBody {
+    fn new(
+        a: Vector3<f64>,
+        b: Vector3<f64>,
+        r: f64,
+        ends: Ends,
+        part: Part,
+        arc: [f64; 2],
+    ) -> Self {
+        let ba = b - a;
+        let len = ba.norm();
+        let axis = if len > 1e-9 { ba / len } else { Vector3::z() };
+        let across = -a - axis * (-a).dot(&axis);
+        Self {
+            a,
+            b,
+            r,
+            ends,
+            part,
+            arc,
+            axis,
+            len,
+            a_axis: a.dot(&axis),
+            across,
+            across_c: across.norm_squared() - r * r,
+            spheres: [a.norm_squared() - r * r, b.norm_squared() - r * r],
+            far: a.norm().max(b.norm()) + r,
+        }
     }
-    // edge functions a x + b y + c ≥ 0 inside
-    let edge = |p: [f64; 2], q: [f64; 2]| {
-        let (ea, eb) = (p[1] - q[1], q[0] - p[0]);
-        (ea, eb, -(ea * p[0] + eb * p[1]))
-    };
-    let edges = [edge(p0, p1), edge(p1, p2), edge(p2, p0)];
-    for y in y_lo as usize..y_hi as usize {
-        let yc = y as f64 + 0.5;
-        // the span of pixel centres x + 0.5 inside all three half-planes on this row
-        let (mut x_min, mut x_max) = (0.0f64, w);
-        for &(ea, eb, ec) in &edges {
-            let rest = eb * yc + ec; // ea x + rest ≥ 0
-            if ea > 0.0 {
-                x_min = x_min.max(-rest / ea);
-            } else if ea < 0.0 {
-                x_max = x_max.min(-rest / ea);
-            } else if rest < 0.0 {
-                x_max = -1.0;
+
+    /// Whether a ray inside `cone` may meet the body. A ray `d` within the
+    /// cone's half-angle `α` of its axis `c` that meets the body at `q`
+    /// passes `q` within `|q| sin α` of the line along `c`; `q` is within
+    /// `r` of the axis segment and `|q| ≤ far`. So the segment comes within
+    /// `r + far · sin α` of that line, or no ray of the cone meets the body.
+    #[inline]
+    fn may_meet(&self, cone: &Cone) -> bool {
+        let c = &cone.axis;
+        // the segment a + s (b − a) across the line: affine in s
+        let pa = self.a - c * self.a.dot(c);
+        let pb = self.b - c * self.b.dot(c);
+        let e = pb - pa;
+        let ee = e.norm_squared();
+        let s = if ee > 1e-18 {
+            (-pa.dot(&e) / ee).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let reach = self.r + self.far * cone.sin_half;
+        (pa + e * s).norm_squared() <= reach * reach
+    }
+
+    /// The first hit of the ray from the origin along unit `d`: its
+    /// distance, the axial parameter in `[0, 1]` and the surface.
+    #[inline]
+    fn hit(&self, d: &Vector3<f64>) -> Option<(f64, f64, Surface)> {
+        let mut best: Option<(f64, f64, Surface)> = None;
+        let mut keep = |t: f64, u: f64, s: Surface| {
+            if t > 0.0 && best.is_none_or(|b| t < b.0) {
+                best = Some((t, u, s));
+            }
+        };
+        if self.len > 1e-9 {
+            // side: |d t − a|² across the axis = r², nearer root
+            let da = d.dot(&self.axis);
+            let qa = 1.0 - da * da;
+            let qb = 2.0 * d.dot(&self.across);
+            let disc = qb * qb - 4.0 * qa * self.across_c;
+            if qa > 1e-18 && disc >= 0.0 {
+                let t = (-qb - disc.sqrt()) / (2.0 * qa);
+                let along = t * da - self.a_axis;
+                if (0.0..=self.len).contains(&along) {
+                    keep(t, along / self.len, Surface::Side);
+                }
+            }
+            if self.ends == Ends::Flat && da.abs() > 1e-12 {
+                // end discs: the planes through a and b across the axis
+                for (c, u, s) in [(&self.a, 0.0, Surface::EndA), (&self.b, 1.0, Surface::EndB)] {
+                    let t = c.dot(&self.axis) / da;
+                    if (d * t - c).norm_squared() <= self.r * self.r {
+                        keep(t, u, s);
+                    }
+                }
             }
         }
-        // pixel x is inside iff x_min ≤ x + 0.5 ≤ x_max
-        let first = (x_min - 0.5).ceil().max(0.0);
-        let last = (x_max - 0.5).floor().min(w - 1.0);
-        if first <= last {
-            let row = y * k.width as usize;
-            mask.fill_span(row + first as usize, row + last as usize);
+        // a flat body of no length is a disc of no thickness: nothing to hit
+        if self.ends == Ends::Round {
+            for (c, k, u, s) in [
+                (&self.a, self.spheres[0], 0.0, Surface::EndA),
+                (&self.b, self.spheres[1], 1.0, Surface::EndB),
+            ] {
+                let cd = c.dot(d);
+                let disc = cd * cd - k;
+                if disc >= 0.0 {
+                    keep(cd - disc.sqrt(), u, s);
+                }
+            }
+        }
+        best
+    }
+
+    /// Outward unit normal where the ray along `d` meets `surface` at `t`,
+    /// axial parameter `u`.
+    fn normal(&self, d: &Vector3<f64>, t: f64, u: f64, surface: Surface) -> Vector3<f64> {
+        match (self.ends, surface) {
+            (Ends::Flat, Surface::EndA) if self.len > 1e-9 => -self.axis,
+            (Ends::Flat, Surface::EndB) if self.len > 1e-9 => self.axis,
+            _ => (d * t - (self.a + (self.b - self.a) * u)).normalize(),
         }
     }
 }
 
-/// Fills the pixels whose centre ray meets the sphere (camera frame, mm).
-/// Pixel box `[u_min, v_min, u_max, v_max]` of a sphere (centre `c` in the
-/// camera frame, radius `r`, mm) under intrinsics `k`: along each image axis,
-/// where the planes through the centre of projection touch the sphere (the
-/// tangent lines of its disc in the (axis, z) plane). `None` where the
-/// sphere reaches the camera's plane, so that no finite box holds it.
-pub(crate) fn sphere_extent(k: &Intrinsics, c: Vector3<f64>, r: f64) -> Option<[f64; 4]> {
-    let along = |x: f64, f: f64, centre: f64| -> Option<(f64, f64)> {
+impl Scene {
+    /// Whether the ray along unit `d` meets any of the bodies `candidates`.
+    #[inline]
+    pub(crate) fn any_hit(&self, candidates: &[u16], d: &Vector3<f64>) -> bool {
+        candidates
+            .iter()
+            .any(|&i| self.bodies[usize::from(i)].hit(d).is_some())
+    }
+
+    /// The first body among `candidates` the ray along unit `d` meets.
+    pub(crate) fn first_hit(&self, candidates: &[u16], d: &Vector3<f64>) -> Option<SurfaceHit> {
+        let mut best: Option<(f64, f64, Surface, usize)> = None;
+        for &i in candidates {
+            let i = usize::from(i);
+            if let Some((t, u, s)) = self.bodies[i].hit(d)
+                && best.is_none_or(|b| t < b.0)
+            {
+                best = Some((t, u, s, i));
+            }
+        }
+        best.map(|(t, u, s, i)| {
+            let body = &self.bodies[i];
+            SurfaceHit {
+                t,
+                body: i,
+                normal: body.normal(d, t, u, s),
+                arc_mm: body.arc[0] + u * (body.arc[1] - body.arc[0]),
+                on_end: s != Surface::Side,
+            }
+        })
+    }
+}
+
+/// Box `[x_min, y_min, x_max, y_max]` of the pinhole directions `(x/z,
+/// y/z)` of a sphere (centre `c` in the camera frame, radius `r`, mm):
+/// along each axis, where the planes through the centre of projection
+/// touch the sphere (the tangent lines of its disc in the (axis, z) plane).
+/// `None` where the sphere reaches the camera's plane, so that no finite
+/// box holds it. The pinhole image of a capsule is the convex hull of its
+/// end spheres' images, so the union of their boxes holds it.
+pub(crate) fn pinhole_box(c: Vector3<f64>, r: f64) -> Option<[f64; 4]> {
+    let along = |x: f64| -> Option<(f64, f64)> {
         let rho = x.hypot(c.z);
         if rho <= r {
             return None;
@@ -204,39 +437,41 @@ pub(crate) fn sphere_extent(k: &Intrinsics, c: Vector3<f64>, r: f64) -> Option<[
         if lo <= -limit || hi >= limit {
             return None;
         }
-        Some((centre + f * lo.tan(), centre + f * hi.tan()))
+        Some((lo.tan(), hi.tan()))
     };
-    let (u0, u1) = along(c.x, k.fx, k.cx)?;
-    let (v0, v1) = along(c.y, k.fy, k.cy)?;
-    Some([u0, v0, u1, v1])
+    let (x0, x1) = along(c.x)?;
+    let (y0, y1) = along(c.y)?;
+    Some([x0, y0, x1, y1])
 }
 
-fn fill_sphere(camera: &Camera, c: Vector3<f64>, r: f64, mask: &mut Mask) {
-    if c.z + r < Z_NEAR {
-        return;
-    }
-    let k = &camera.intrinsics;
-    let (w, h) = (f64::from(k.width), f64::from(k.height));
-    let [x_lo, y_lo, x_hi, y_hi] = match sphere_extent(k, c, r) {
-        Some([u0, v0, u1, v1]) => [
-            u0.floor().max(0.0),
-            v0.floor().max(0.0),
-            u1.ceil().min(w),
-            v1.ceil().min(h),
-        ],
-        None => [0.0, 0.0, w, h],
-    };
-    let (cc, rr) = (c.norm_squared(), r * r);
-    for y in y_lo as usize..y_hi.max(y_lo) as usize {
-        let dy = (y as f64 + 0.5 - k.cy) / k.fy;
-        for x in x_lo as usize..x_hi.max(x_lo) as usize {
-            let dx = (x as f64 + 0.5 - k.cx) / k.fx;
-            // ray d = (dx, dy, 1): hits iff |c|² − (c·d)²/|d|² ≤ r² with c·d > 0
-            let cd = c.x * dx + c.y * dy + c.z;
-            let dd = dx * dx + dy * dy + 1.0;
-            if cd > 0.0 && cc - cd * cd / dd <= rr {
-                mask.set(x, y);
-            }
+/// Pixel box `[u_min, v_min, u_max, v_max]` of everything whose pinhole
+/// directions lie in `[x0, y0, x1, y1]`, seen by `camera`, lens included.
+///
+/// The lens scales each direction by `s(r_u) ≤ 1`, falling with `r_u`, while
+/// `r_u s(r_u)` rises: so `x_d = x s` rises with `x` and, for `x` of one
+/// sign, is largest in magnitude where `|y|` is smallest. The box's
+/// distorted extremes are therefore on its corners or where its edges cross
+/// an axis (a straight edge bows outward under barrel distortion).
+pub(crate) fn image_box(camera: &Camera, [x0, y0, x1, y1]: [f64; 4]) -> [f64; 4] {
+    let lens = &camera.lens;
+    // the |y| nearest and farthest from the axis over [y0, y1], and likewise for x
+    let near = |lo: f64, hi: f64| {
+        if lo <= 0.0 && hi >= 0.0 {
+            0.0
+        } else {
+            lo.abs().min(hi.abs())
         }
-    }
+    };
+    let far = |lo: f64, hi: f64| lo.abs().max(hi.abs());
+    let (ny, fy, nx, fx) = (near(y0, y1), far(y0, y1), near(x0, x1), far(x0, x1));
+    // an extreme x_d at x: outward (|x_d| largest) nearest the axis in y, inward farthest
+    let xd = |x: f64, outward: bool| lens.distort(x, if outward { ny } else { fy })[0];
+    let yd = |y: f64, outward: bool| lens.distort(if outward { nx } else { fx }, y)[1];
+    let k = &camera.intrinsics;
+    [
+        k.fx * xd(x0, x0 < 0.0) + k.cx,
+        k.fy * yd(y0, y0 < 0.0) + k.cy,
+        k.fx * xd(x1, x1 > 0.0) + k.cx,
+        k.fy * yd(y1, y1 > 0.0) + k.cy,
+    ]
 }

@@ -5,6 +5,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use nalgebra::Point3;
+
 use crate::camera::Camera;
 use crate::error::{ModelError, Result};
 use crate::instrument::{Instrument, InstrumentShape, Part};
@@ -68,10 +70,11 @@ impl Roi {
     /// holds the middle of the box.
     ///
     /// The poses are sampled every 1° of bend and every 1 mm of translation
-    /// (ends included). Each capsule's image is bounded exactly: a capsule is
-    /// the convex hull of its two end spheres, a pinhole maps it to the convex
-    /// hull of their images, and a sphere's extent along `u` (or `v`) is
-    /// where the planes through the centre of projection touch it. Between
+    /// (ends included). Each body lies in the capsule of its radius, the
+    /// convex hull of its two end spheres; a pinhole maps that to the convex
+    /// hull of their images, whose box is where the planes through the centre
+    /// of projection touch them; the lens then bends that box of directions
+    /// to a pixel box that holds everything in it (`raster::image_box`). Between
     /// samples a pose moves the tip by well under a pixel at the default
     /// camera, which the margin absorbs.
     ///
@@ -115,36 +118,47 @@ impl Roi {
         let nt = ((t1 - t0).ceil() as usize).max(1);
         let nd = ((d1 - d0).ceil() as usize).max(1);
         let mut shape = InstrumentShape::default();
-        let mut bbox = [
+        // the union of the end spheres' pinhole boxes (a body lies inside the
+        // capsule of its radius); `None` once a sphere reaches the camera's plane
+        let mut pinhole = Some([
             f64::INFINITY,
             f64::INFINITY,
             f64::NEG_INFINITY,
             f64::NEG_INFINITY,
-        ];
+        ]);
         for i in 0..=nt {
             let theta = t0 + (t1 - t0) * i as f64 / nt as f64;
             for j in 0..=nd {
                 let d = d0 + (d1 - d0) * j as f64 / nd as f64;
                 instrument.shape_into(theta, d, &mut shape)?;
-                for c in shape.capsules.iter().filter(|c| c.part != Part::Shaft) {
+                for c in shape.bodies.iter().filter(|c| c.part != Part::Shaft) {
                     for end in [c.a_mm, c.b_mm] {
-                        // a sphere that reaches the camera's plane can cover any pixel
-                        let [u0, v0, u1, v1] = sphere_extent(camera, end, c.radius_mm).unwrap_or([
-                            f64::NEG_INFINITY,
-                            f64::NEG_INFINITY,
-                            f64::INFINITY,
-                            f64::INFINITY,
-                        ]);
-                        bbox = [
-                            bbox[0].min(u0),
-                            bbox[1].min(v0),
-                            bbox[2].max(u1),
-                            bbox[3].max(v1),
-                        ];
+                        let centre = (camera.camera_from_overtube * Point3::from(end)).coords;
+                        pinhole =
+                            pinhole
+                                .zip(raster::pinhole_box(centre, c.radius_mm))
+                                .map(|(b, s)| {
+                                    [
+                                        b[0].min(s[0]),
+                                        b[1].min(s[1]),
+                                        b[2].max(s[2]),
+                                        b[3].max(s[3]),
+                                    ]
+                                });
                     }
                 }
             }
         }
+        // a sphere that reaches the camera's plane can cover any pixel
+        let bbox = pinhole.map_or(
+            [
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::INFINITY,
+            ],
+            |b| raster::image_box(camera, b),
+        );
         let k = &camera.intrinsics;
         let (w, h) = (f64::from(k.width), f64::from(k.height));
         let m = f64::from(margin_px);
@@ -179,9 +193,10 @@ impl Roi {
 
 /// Pixel box of a sphere (centre in the overtube frame, mm) seen by
 /// `camera`; `None` if any of it reaches the camera's plane.
+#[cfg(test)]
 fn sphere_extent(camera: &Camera, centre_mm: [f64; 3], radius_mm: f64) -> Option<[f64; 4]> {
-    let c = (camera.camera_from_overtube * nalgebra::Point3::from(centre_mm)).coords;
-    raster::sphere_extent(&camera.intrinsics, c, radius_mm)
+    let c = (camera.camera_from_overtube * Point3::from(centre_mm)).coords;
+    raster::pinhole_box(c, radius_mm).map(|b| raster::image_box(camera, b))
 }
 
 #[cfg(test)]
@@ -192,17 +207,26 @@ mod tests {
 
     #[test]
     fn sphere_extent_bounds_its_rasterised_image() {
-        let camera = Camera::default();
-        // centred, off-axis, and cut by the image's left edge
-        for centre in [[0.0, 5.0, 20.0], [12.0, -6.0, 15.0], [-14.0, 9.0, 12.0]] {
+        let pinhole = Camera {
+            lens: crate::camera::Lens::PINHOLE,
+            ..Camera::default()
+        };
+        // centred, off-axis, and cut by the image's left edge; through a
+        // pinhole (a tight box) and the default lens (a box of directions
+        // bent by it: it holds the image, less tightly off-axis)
+        for (camera, centre) in [[0.0, 5.0, 20.0], [12.0, -6.0, 15.0], [-14.0, 9.0, 12.0]]
+            .into_iter()
+            .flat_map(|c| [(pinhole, c), (Camera::default(), c)])
+        {
             let [u0, v0, u1, v1] = sphere_extent(&camera, centre, 1.5).unwrap();
             let shape = InstrumentShape {
-                capsules: vec![crate::instrument::Capsule {
+                bodies: vec![crate::instrument::Body {
                     a_mm: centre,
                     b_mm: centre,
                     radius_mm: 1.5,
-                    cap_a: true,
+                    ends: crate::instrument::Ends::Round,
                     part: Part::Jaw(0),
+                    arc_mm: [0.0, 0.0],
                 }],
                 tip_mm: centre,
             };
@@ -227,9 +251,15 @@ mod tests {
                 .filter(|&x| (0..480).any(|y| mask.get(x, y)))
                 .collect();
             let right = f64::from(*xs.last().unwrap() + 1);
+            let slack = if camera.lens == pinhole.lens {
+                1.5
+            } else {
+                12.0
+            };
             assert!(
-                u1 - right < 1.5 && (xs[0] == 0 || f64::from(xs[0]) - u0 < 1.5),
-                "{centre:?}"
+                u1 - right < slack && (xs[0] == 0 || f64::from(xs[0]) - u0 < slack),
+                "{centre:?}: box {u0:.1}–{u1:.1}, drawn {}–{right}",
+                xs[0]
             );
         }
     }
@@ -243,7 +273,7 @@ mod tests {
         let mut mask = Mask::new(640, 480).unwrap();
         for theta in [0.0, 0.5, 17.3, 33.0, 49.5, 50.0] {
             let mut shape = instrument.shape(theta, 10.0).unwrap();
-            shape.capsules.retain(|c| c.part != Part::Shaft);
+            shape.bodies.retain(|c| c.part != Part::Shaft);
             mask.clear();
             raster.silhouette(&camera, &shape, &mut mask).unwrap();
             let inside = mask.crop(roi).unwrap().count();

@@ -1,14 +1,16 @@
-//! Camera and silhouettes: projection of known points, the rasterizer against an
-//! independent ray cast (parry's capsules), resolution of the 48×48 region of
-//! interest, and bad input.
+//! Camera and silhouettes: projection of known points through the lens, the
+//! ray caster against an independent one (parry's capsules and cylinders),
+//! windows equal to crops, resolution of the 48×48 region of interest, and
+//! bad input.
 
 use kflex_model::{
-    Camera, Instrument, InstrumentShape, Intrinsics, Mask, ModelError, RangeError, Rasterizer, Roi,
+    Camera, Ends, Instrument, InstrumentShape, Intrinsics, Lens, Mask, ModelError, RangeError,
+    Rasterizer, Roi,
 };
 use nalgebra::Point3;
-use rapier3d::math::{Pose, Vector as PVec};
+use rapier3d::math::{Pose, Rotation, Vector as PVec};
 use rapier3d::parry::query::{Ray, RayCast};
-use rapier3d::parry::shape::Capsule as ParryCapsule;
+use rapier3d::parry::shape::{Capsule as ParryCapsule, Cylinder as ParryCylinder};
 
 fn render(camera: &Camera, shape: &InstrumentShape) -> Mask {
     let k = camera.intrinsics;
@@ -19,26 +21,40 @@ fn render(camera: &Camera, shape: &InstrumentShape) -> Mask {
     mask
 }
 
-/// The reference: a ray through every pixel centre against parry's capsules (f32).
+/// The reference: a ray through every pixel centre (the camera's own ray,
+/// lens included) against parry's capsules and cylinders (f32).
 fn ray_cast(camera: &Camera, shape: &InstrumentShape) -> Mask {
     let k = camera.intrinsics;
     let to_cam = |p: [f64; 3]| {
         let q = camera.camera_from_overtube * Point3::from(p);
         PVec::new(q.x as f32, q.y as f32, q.z as f32)
     };
-    let capsules: Vec<ParryCapsule> = shape
-        .capsules
-        .iter()
-        .map(|c| ParryCapsule::new(to_cam(c.a_mm), to_cam(c.b_mm), c.radius_mm as f32))
-        .collect();
+    let mut shapes: Vec<(Pose, Box<dyn RayCast>)> = Vec::new();
+    for b in &shape.bodies {
+        let (a, e) = (to_cam(b.a_mm), to_cam(b.b_mm));
+        let r = b.radius_mm as f32;
+        match b.ends {
+            Ends::Round => shapes.push((Pose::IDENTITY, Box::new(ParryCapsule::new(a, e, r)))),
+            // a flat body of no length (the shaft at d = 0) has no volume
+            Ends::Flat if (e - a).length() < 1e-6 => {}
+            Ends::Flat => {
+                let axis = e - a;
+                let pose = Pose::from_parts(
+                    (a + e) * 0.5,
+                    Rotation::from_rotation_arc(PVec::Y, axis.normalize()),
+                );
+                shapes.push((pose, Box::new(ParryCylinder::new(0.5 * axis.length(), r))));
+            }
+        }
+    }
     let mut data = vec![0u8; (k.width * k.height) as usize];
     for y in 0..k.height {
         for x in 0..k.width {
             let d = camera.ray_direction(f64::from(x) + 0.5, f64::from(y) + 0.5);
             let ray = Ray::new(PVec::ZERO, PVec::new(d[0] as f32, d[1] as f32, d[2] as f32));
-            if capsules
+            if shapes
                 .iter()
-                .any(|c| c.cast_ray(&Pose::IDENTITY, &ray, 1e4, true).is_some())
+                .any(|(pose, s)| s.cast_ray(pose, &ray, 1e4, true).is_some())
             {
                 data[(y * k.width + x) as usize] = 1;
             }
@@ -53,7 +69,7 @@ fn roi(camera: &Camera, instrument: &Instrument, thetas: &[f64], ds: &[f64]) -> 
     for &theta in thetas {
         for &d in ds {
             let shape = instrument.shape(theta, d).unwrap();
-            for c in &shape.capsules[1..] {
+            for c in &shape.bodies[1..] {
                 for p in [c.a_mm, c.b_mm] {
                     let uv = camera.project(p).unwrap();
                     for i in 0..2 {
@@ -74,33 +90,149 @@ fn roi(camera: &Camera, instrument: &Instrument, thetas: &[f64], ds: &[f64]) -> 
 
 #[test]
 fn projects_known_points() {
-    let camera = Camera::default();
-    let k = camera.intrinsics;
-    let on_axis = camera.project([0.0, 0.0, 30.0]).unwrap();
+    let pinhole = Camera {
+        lens: Lens::PINHOLE,
+        ..Camera::default()
+    };
+    let k = pinhole.intrinsics;
+    let on_axis = pinhole.project([0.0, 0.0, 30.0]).unwrap();
     assert!((on_axis[0] - k.cx).abs() < 1e-12 && (on_axis[1] - k.cy).abs() < 1e-12);
-    let p = camera.project([3.0, -2.0, 20.0]).unwrap();
+    let p = pinhole.project([3.0, -2.0, 20.0]).unwrap();
     assert!(
         (p[0] - (k.cx + k.fx * 0.15)).abs() < 1e-9 && (p[1] - (k.cy - k.fy * 0.1)).abs() < 1e-9
     );
     assert!(
-        camera.project([0.0, 0.0, -1.0]).is_none(),
+        pinhole.project([0.0, 0.0, -1.0]).is_none(),
         "behind the camera"
     );
-    // 100 deg horizontal field of view: a point at 50 deg off-axis lands on the image edge
-    let edge = camera
+    // 100 deg horizontal field of view through a pinhole: 50 deg off-axis lands on the edge
+    let edge = pinhole
         .project([50f64.to_radians().tan() * 10.0, 0.0, 10.0])
         .unwrap();
     assert!((edge[0] - f64::from(k.width)).abs() < 1e-9);
     // a region of interest maps its corner to (0, 0) and its far corner to (w, h)
     let r = k.region(100.0, 50.0, 200.0, 200.0, 48, 48).unwrap();
-    let cam_r = camera.with_intrinsics(r);
-    let world = [
-        (100.0 - k.cx) / k.fx * 10.0,
-        (50.0 - k.cy) / k.fy * 10.0,
-        10.0,
-    ];
-    let uv = cam_r.project(world).unwrap();
-    assert!(uv[0].abs() < 1e-9 && uv[1].abs() < 1e-9, "{uv:?}");
+    for camera in [pinhole, Camera::default()] {
+        let cam_r = camera.with_intrinsics(r);
+        let d = camera.ray_direction(100.0, 50.0);
+        let uv = cam_r.project([d[0] * 10.0, d[1] * 10.0, 10.0]).unwrap();
+        assert!(uv[0].abs() < 1e-9 && uv[1].abs() < 1e-9, "{uv:?}");
+    }
+}
+
+#[test]
+fn the_lens_is_a_wide_angle_barrel_and_inverts_exactly() {
+    let camera = Camera::default();
+    let k = camera.intrinsics;
+    // every pixel's ray projects back to the pixel
+    for (u, v) in [
+        (0.0, 0.0),
+        (640.0, 480.0),
+        (13.5, 401.2),
+        (320.0, 240.0),
+        (600.0, 20.0),
+    ] {
+        let d = camera.ray_direction(u, v);
+        let back = camera.project([d[0] * 7.0, d[1] * 7.0, 7.0]).unwrap();
+        assert!(
+            (back[0] - u).abs() < 1e-9 && (back[1] - v).abs() < 1e-9,
+            "({u}, {v}) → {back:?}"
+        );
+    }
+    // the documented fields of view: 113 deg across, 132 deg on the diagonal
+    let angle = |u: f64, v: f64| {
+        let d = camera.ray_direction(u, v);
+        d[0].hypot(d[1]).atan().to_degrees()
+    };
+    let across = angle(0.0, k.cy) + angle(f64::from(k.width), k.cy);
+    let diagonal = 2.0 * angle(0.0, 0.0);
+    assert!((across - 113.1).abs() < 0.1, "{across}");
+    assert!((diagonal - 131.7).abs() < 0.1, "{diagonal}");
+    // barrel: a point off-axis lands nearer the centre than through a pinhole
+    let pinhole = Camera {
+        lens: Lens::PINHOLE,
+        ..camera
+    };
+    let (bent, straight) = (
+        camera.project([8.0, 3.0, 10.0]).unwrap(),
+        pinhole.project([8.0, 3.0, 10.0]).unwrap(),
+    );
+    assert!(bent[0] < straight[0] && bent[1] < straight[1] && bent[0] > k.cx);
+    // vignetting: full light on the axis, 48 % in the corners
+    assert!((camera.illumination(k.cx, k.cy) - 1.0).abs() < 1e-12);
+    assert!((camera.illumination(0.0, 0.0) - 0.48).abs() < 0.005);
+    // a lens that would fold the image over is refused, naming the coefficient
+    let folded = Camera {
+        lens: Lens {
+            division: -0.5,
+            vignetting: 0.0,
+        },
+        ..camera
+    };
+    match folded.validate() {
+        Err(ModelError::OutOfRange(e)) => assert_eq!(e.name, "lens.division"),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn a_window_is_exactly_the_crop_of_the_full_silhouette() {
+    let camera = Camera::default();
+    let instrument = Instrument::kflex();
+    let mut raster = Rasterizer::new();
+    for (theta, d) in [(30.0, 10.0), (-90.0, 0.0), (75.0, 25.0)] {
+        let shape = instrument.shape(theta, d).unwrap();
+        let full = render(&camera, &shape);
+        for window in [
+            Roi {
+                x0: 0,
+                y0: 0,
+                width: 640,
+                height: 480,
+            },
+            Roi {
+                x0: 201,
+                y0: 173,
+                width: 97,
+                height: 150,
+            },
+            Roi {
+                x0: 600,
+                y0: 470,
+                width: 40,
+                height: 10,
+            },
+            Roi {
+                x0: 5,
+                y0: 300,
+                width: 1,
+                height: 1,
+            },
+        ] {
+            let mut part = Mask::new(window.width, window.height).unwrap();
+            raster
+                .silhouette_window(&camera, &shape, window, &mut part)
+                .unwrap();
+            assert_eq!(
+                part,
+                full.crop(window).unwrap(),
+                "θ = {theta}, d = {d}, {window:?}"
+            );
+        }
+    }
+    // a window outside the image names the axis that fails
+    let mut part = Mask::new(50, 50).unwrap();
+    let outside = Roi {
+        x0: 100,
+        y0: 450,
+        width: 50,
+        height: 50,
+    };
+    let shape = instrument.shape(0.0, 10.0).unwrap();
+    match raster.silhouette_window(&camera, &shape, outside, &mut part) {
+        Err(ModelError::OutOfRange(e)) => assert_eq!(e.name, "roi.y0 + roi.height"),
+        other => panic!("{other:?}"),
+    }
 }
 
 #[test]
@@ -127,6 +259,9 @@ fn silhouettes_match_an_independent_ray_cast() {
         (50.0, 15.0),
         (-30.0, 8.0),
         (90.0, 20.0),
+        (-90.0, 0.0),
+        (90.0, 0.0),
+        (-60.0, 40.0),
     ] {
         let shape = instrument.shape(theta, d).unwrap();
         for (i, cam) in [camera, roi_camera, hd].iter().enumerate() {
@@ -147,9 +282,10 @@ fn silhouettes_match_an_independent_ray_cast() {
         "worst IoU: 640x480 {:.4}, 48x48 ROI {:.4}, 1920x1080 {:.4}",
         worst[0], worst[1], worst[2]
     );
+    // exact hits on both sides: only f32 round-off in the reference differs
     assert!(
-        worst.iter().all(|&w| w >= 0.98),
-        "IoU below 0.98: {worst:?}"
+        worst.iter().all(|&w| w >= 0.995),
+        "IoU below 0.995: {worst:?}"
     );
 }
 

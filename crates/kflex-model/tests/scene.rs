@@ -5,7 +5,7 @@ use kflex_model::Instrument;
 use kflex_model::ModelError;
 use kflex_model::{Background, FrameParams, Occlusion, SceneRenderer};
 use kflex_model::{Camera, Intrinsics};
-use kflex_model::{Mask, Rasterizer};
+use kflex_model::{Mask, Rasterizer, Roi};
 
 fn frame(params: FrameParams) -> kflex_model::Frame {
     let shape = Instrument::kflex().shape(30.0, 10.0).unwrap();
@@ -68,7 +68,7 @@ fn tape_covers_the_requested_share_where_asked() {
     // the end of the last link (the tool's base), safely inside the instrument's silhouette
     let near_tip = {
         let last = shape
-            .capsules
+            .bodies
             .iter()
             .rfind(|c| matches!(c.part, kflex_model::Part::Link(_)))
             .unwrap();
@@ -79,12 +79,18 @@ fn tape_covers_the_requested_share_where_asked() {
             occlusion: Some(Occlusion { fraction, position }),
             ..FrameParams::default()
         });
-        let (taped, visible) = (f.occluder.count(), f.instrument.count());
+        // the share is measured where IBJAE looks: the working region
+        let roi = Roi::working(&camera).unwrap();
+        let (taped, visible) = (
+            f.occluder.crop(roi).unwrap().count(),
+            f.instrument.crop(roi).unwrap().count(),
+        );
         let share = taped as f64 / (taped + visible) as f64;
         assert!(
             (share - fraction).abs() < 0.02,
             "asked {fraction}, got {share:.3}"
         );
+        let (taped, visible) = (f.occluder.count(), f.instrument.count());
         // masks partition the silhouette
         assert_eq!(taped + visible, silhouette.count());
         for (i, &s) in silhouette.data().iter().enumerate() {
@@ -102,6 +108,65 @@ fn tape_covers_the_requested_share_where_asked() {
     let clean = frame(FrameParams::default());
     assert_eq!(clean.occluder.count(), 0);
     assert_eq!(clean.instrument, silhouette);
+}
+
+#[test]
+fn a_window_is_exactly_the_crop_of_the_full_frame() {
+    let camera = Camera::default();
+    let mut renderer = SceneRenderer::new();
+    for (theta, d, params) in [
+        (30.0, 10.0, FrameParams::default()),
+        (
+            -60.0,
+            20.0,
+            FrameParams {
+                background: Background::Larynx,
+                seed: 7,
+                frame: 3,
+                blur_px: 1.5,
+                noise_std: 0.05,
+                occlusion: Some(Occlusion {
+                    fraction: 0.3,
+                    position: 1.0,
+                }),
+                ..FrameParams::default()
+            },
+        ),
+    ] {
+        let shape = Instrument::kflex().shape(theta, d).unwrap();
+        let full = renderer.render(&camera, &shape, &params).unwrap();
+        for window in [
+            Roi::working(&camera).unwrap(),
+            Roi {
+                x0: 0,
+                y0: 0,
+                width: 37,
+                height: 480,
+            },
+            Roi {
+                x0: 611,
+                y0: 3,
+                width: 29,
+                height: 41,
+            },
+        ] {
+            let part = renderer
+                .render_window(&camera, &shape, &params, window)
+                .unwrap();
+            assert_eq!((part.width, part.height), (window.width, window.height));
+            assert_eq!(part.instrument, full.instrument.crop(window).unwrap());
+            assert_eq!(part.occluder, full.occluder.crop(window).unwrap());
+            for y in 0..window.height as usize {
+                let row = 3 * ((window.y0 as usize + y) * 640 + window.x0 as usize);
+                let w = 3 * window.width as usize;
+                assert_eq!(
+                    part.rgb[y * w..(y + 1) * w],
+                    full.rgb[row..row + w],
+                    "θ = {theta}: row {y} of {window:?}"
+                );
+            }
+        }
+    }
 }
 
 #[test]

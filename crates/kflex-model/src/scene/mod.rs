@@ -13,22 +13,28 @@ use crate::error::Result;
 use crate::instrument::InstrumentShape;
 use crate::mask::Mask;
 use crate::range::Bounds;
-use crate::raster::Rasterizer;
+use crate::raster::{Rasterizer, SurfaceHit, unit_ray};
+use crate::roi::Roi;
 pub use background::Background;
 use sensor::{Sensor, gaussian_blur, normal_table};
-use shading::{Hit, METAL, TAPE, shade, tape_band};
+use shading::{Surroundings, surface_colour, tape_band};
 
 /// What a cached background depends on: kind, seed, width, height.
 type BackgroundKey = (Background, u64, u32, u32);
 
-/// Tape over the instrument: a band covering `fraction` of its visible area.
+/// Tape over the instrument: a band covering `fraction` of the instrument's
+/// pixels inside the camera's working region ([`Roi::working`]: what IBJAE
+/// sees), as the paper defines occlusion by the area the tape covers on the
+/// instrument it analyses.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Occlusion {
-    /// Share of the visible instrument area covered, in [0, 1] (the paper: 0.2, 0.4).
+    /// Share of the instrument's pixels in the working region covered, in
+    /// [0, 1] (the paper: 0.2, 0.4).
     pub fraction: f64,
-    /// Where the band sits along the instrument: 0 at the proximal end of what is
-    /// visible, 1 ending at the tool tip (the paper's "distal part").
+    /// Where the band sits along that part of the instrument: 0 starting at its
+    /// proximal end, 0.5 centred on it (the paper's "middle"), 1 ending at the
+    /// tool tip (the paper's "distal part").
     pub position: f64,
 }
 
@@ -106,15 +112,57 @@ pub struct Frame {
 /// Backgrounds are generated from a seed ([`Background`]) and cached per
 /// (kind, seed, size) in a [`SceneRenderer`], so a frame costs the instrument's
 /// shading and the sensor model, not the texture synthesis.
+///
+/// A frame is made in three passes over the window asked for (grown by the
+/// blur's reach and one pixel, so that a window's pixels equal the full
+/// frame's crop):
+/// 1. **Rays.** The ray through each pixel's centre, bent by the lens, meets
+///    the instrument's bodies exactly ([`Rasterizer`]): this decides the
+///    ground-truth masks.
+/// 2. **Shading.** Steel lit by the endoscope's light at the camera, tinted by
+///    the tissue it reflects, matte tape; the light falls off with the inverse
+///    square of the distance. Pixels on the silhouette's edge (where a
+///    neighbour's centre ray disagrees) are shaded from four rays inside the
+///    pixel and blended with the background by their coverage: anti-aliased
+///    edges.
+/// 3. **Sensor.** The lens's vignetting, the illumination gain, Gaussian
+///    blur, Gaussian noise (counter-based, so each pixel's noise depends on
+///    its place in the full frame only), 8 bits.
 #[derive(Debug, Default)]
 pub struct SceneRenderer {
     raster: Rasterizer,
-    cache: Option<(BackgroundKey, Vec<f32>)>,
-    silhouette: Option<Mask>,
-    hits: Vec<Hit>,
+    cache: Option<(BackgroundKey, Vec<f32>, [f32; 3])>,
+    /// Centre-ray hits of the last frame's work region, and per pixel of that
+    /// region the index of its hit plus one (0: none).
+    hits: Vec<SurfaceHit>,
+    inside: Vec<u32>,
+    arcs: Vec<f32>,
+    /// The last camera's working region (where the tape's share is measured).
+    working: Option<(Camera, Option<Roi>)>,
     /// Standard-normal samples; each frame reads them in a seeded pseudo-random order.
     normals: Vec<f32>,
 }
+
+/// `r` grown by `by` pixels on each side, clipped to a `w × h` image.
+fn grow(r: Roi, by: u32, w: u32, h: u32) -> Roi {
+    let (x0, y0) = (r.x0.saturating_sub(by), r.y0.saturating_sub(by));
+    let x1 = (r.x0 + r.width).saturating_add(by).min(w);
+    let y1 = (r.y0 + r.height).saturating_add(by).min(h);
+    Roi {
+        x0,
+        y0,
+        width: x1 - x0,
+        height: y1 - y0,
+    }
+}
+
+/// Sub-pixel offsets of the four rays that shade an edge pixel (a rotated grid).
+const EDGE_SAMPLES: [(f64, f64); 4] = [
+    (-0.125, -0.375),
+    (0.375, -0.125),
+    (0.125, 0.375),
+    (-0.375, 0.125),
+];
 
 impl SceneRenderer {
     /// A renderer with an empty cache.
@@ -125,8 +173,9 @@ impl SceneRenderer {
 
     /// Renders `shape` seen by `camera` with `params`: the instrument shaded
     /// over the cached background, tape where `params.occlusion` puts it,
-    /// then the sensor (illumination gain, blur, noise, 8 bits). The masks of
-    /// the frame are exact: the instrument's untaped pixels and the tape's.
+    /// then the sensor (vignetting, illumination gain, blur, noise, 8 bits).
+    /// The masks of the frame are exact: the pixels whose centre ray meets
+    /// the instrument's untaped surface, and the tape's.
     ///
     /// # Examples
     /// ```
@@ -137,89 +186,88 @@ impl SceneRenderer {
     /// let clean = renderer.render(&camera, &shape, &FrameParams::default())?;
     /// assert_eq!(clean.rgb.len(), 640 * 480 * 3);
     /// assert_eq!(clean.occluder.count(), 0);
-    /// // 40 % of the visible instrument under tape, at its distal end
+    /// // tape over 40 % of the instrument IBJAE sees, at its distal end
     /// let taped = FrameParams {
     ///     occlusion: Some(Occlusion { fraction: 0.4, position: 1.0 }),
     ///     ..FrameParams::default()
     /// };
     /// let frame = renderer.render(&camera, &shape, &taped)?;
-    /// let share = frame.occluder.count() as f64 / clean.instrument.count() as f64;
-    /// assert!((share - 0.4).abs() < 0.01);
+    /// assert!(frame.occluder.count() > 0);
     /// # Ok::<(), kflex_model::ModelError>(())
     /// ```
     ///
     /// # Errors
-    /// [`crate::ModelError::OutOfRange`] naming the first parameter of `params` or of
-    /// `camera`'s intrinsics out of its range.
+    /// [`crate::ModelError::OutOfRange`] naming the first parameter of `params`, of
+    /// `camera`'s intrinsics or of its lens out of its range.
     pub fn render(
         &mut self,
         camera: &Camera,
         shape: &InstrumentShape,
         params: &FrameParams,
     ) -> Result<Frame> {
-        params.validate()?;
-        let k = camera.intrinsics;
-        k.validate()?;
-        let (w, h) = (k.width, k.height);
-        let key = (params.background, params.seed, w, h);
-        if self.cache.as_ref().map(|c| c.0) != Some(key) {
-            self.cache = Some((
-                key,
-                background::background(params.background, params.seed, w, h),
-            ));
-        }
-        let mut silhouette = match self.silhouette.take() {
-            Some(mut m) if (m.width(), m.height()) == (w, h) => {
-                m.clear();
-                m
-            }
-            _ => Mask::new(w, h)?,
+        let k = &camera.intrinsics;
+        let full = Roi {
+            x0: 0,
+            y0: 0,
+            width: k.width,
+            height: k.height,
         };
-        self.raster.silhouette(camera, shape, &mut silhouette)?;
-        shade(camera, shape, &silhouette, &mut self.hits);
-        self.silhouette = Some(silhouette);
-        // the tape: a band of arc length holding `fraction` of the visible pixels
-        let band = params.occlusion.and_then(|o| tape_band(&self.hits, o));
-        let (mut inst_raw, mut occ_raw) =
-            (vec![0u8; (w * h) as usize], vec![0u8; (w * h) as usize]);
-        let shaded: Vec<(usize, [f32; 3])> = self
-            .hits
-            .iter()
-            .map(|hit| {
-                let taped = band.is_some_and(|(lo, hi)| hit.arc_mm >= lo && hit.arc_mm <= hi);
-                let (base, gloss) = if taped { (TAPE, 0.35) } else { (METAL, 1.0) };
-                if taped {
-                    occ_raw[hit.pixel] = 1;
-                } else {
-                    inst_raw[hit.pixel] = 1;
-                }
-                (
-                    hit.pixel,
-                    base.map(|c| c * hit.diffuse + hit.specular * gloss),
-                )
-            })
-            .collect();
-        let instrument = Mask::from_raw(w, h, inst_raw)?;
-        let occluder = Mask::from_raw(w, h, occ_raw)?;
-        let rgb = self.expose(params, w, h, &shaded);
-        Ok(Frame {
-            width: w,
-            height: h,
-            rgb,
-            instrument,
-            occluder,
-        })
+        self.render_window(camera, shape, params, full)
     }
 
-    /// The sensor's image of the cached background with the `shaded`
-    /// instrument pixels over it: illumination, blur, noise, quantisation.
-    fn expose(
+    /// The pixels of [`SceneRenderer::render`]'s frame inside `window`,
+    /// exactly (image and masks), at a cost proportional to the window's area
+    /// (the closed loop needs only the region of interest). The frame's
+    /// `width` and `height` are the window's.
+    ///
+    /// # Errors
+    /// As [`SceneRenderer::render`]; as [`Roi::check_within`] for a window
+    /// outside the image.
+    pub fn render_window(
         &mut self,
+        camera: &Camera,
+        shape: &InstrumentShape,
         params: &FrameParams,
-        w: u32,
-        h: u32,
-        shaded: &[(usize, [f32; 3])],
-    ) -> Vec<u8> {
+        window: Roi,
+    ) -> Result<Frame> {
+        params.validate()?;
+        camera.validate()?;
+        let k = camera.intrinsics;
+        let (w, h) = (k.width, k.height);
+        window.check_within(w, h)?;
+        let key = (params.background, params.seed, w, h);
+        if self.cache.as_ref().map(|c| c.0) != Some(key) {
+            let image = background::background(params.background, params.seed, w, h);
+            let env = mean_colour(&image);
+            self.cache = Some((key, image, env));
+        }
+        let reach = if params.blur_px > 0.0 {
+            (3.0 * params.blur_px).ceil() as u32
+        } else {
+            0
+        };
+        let shaded_region = grow(window, reach, w, h);
+        let work = grow(shaded_region, 1, w, h);
+        self.raster.prepare(camera, shape);
+        self.cast_centres(camera, work);
+        let band = match params.occlusion {
+            Some(o) => self.tape_band(camera, o),
+            None => None,
+        };
+        let mut img = self.shade(camera, shaded_region, work, band);
+        // the sensor: vignetting first (the lens), then blur, noise and 8 bits
+        let (sw, sh) = (shaded_region.width as usize, shaded_region.height as usize);
+        for (j, px) in img.chunks_exact_mut(3).enumerate() {
+            let (x, y) = (
+                shaded_region.x0 as usize + j % sw,
+                shaded_region.y0 as usize + j / sw,
+            );
+            let v = camera.illumination(x as f64 + 0.5, y as f64 + 0.5) as f32;
+            px.iter_mut().for_each(|c| *c *= v);
+        }
+        if params.blur_px > 0.0 {
+            gaussian_blur(&mut img, sw, sh, params.blur_px);
+        }
         if self.normals.is_empty() {
             self.normals = normal_table();
         }
@@ -231,27 +279,180 @@ impl SceneRenderer {
             gain: params.illumination_gain as f32,
             sigma: params.noise_std as f32,
         };
-        let background = self
-            .cache
-            .as_ref()
-            .map(|c| c.1.as_slice())
-            .unwrap_or_default();
-        if params.blur_px > 0.0 {
-            let mut img = background.to_vec();
-            for &(idx, c) in shaded {
-                img[3 * idx..3 * idx + 3].copy_from_slice(&c);
-            }
-            gaussian_blur(&mut img, w as usize, h as usize, params.blur_px);
-            sensor.image(&img)
-        } else {
-            // no blur: quantise the background straight from the cache, then the instrument over it
-            let mut rgb = sensor.image(background);
-            for &(idx, c) in shaded {
-                for ch in 0..3 {
-                    rgb[3 * idx + ch] = sensor.pixel(3 * idx + ch, c[ch]);
+        let (ww, wh) = (window.width as usize, window.height as usize);
+        let mut rgb = vec![0u8; 3 * ww * wh];
+        let mut instrument = vec![0u8; ww * wh];
+        let mut occluder = vec![0u8; ww * wh];
+        let work_w = work.width as usize;
+        for y in 0..wh {
+            let (fy, sy) = (window.y0 as usize + y, window.y0 - shaded_region.y0);
+            let src = 3 * ((y + sy as usize) * sw + (window.x0 - shaded_region.x0) as usize);
+            let first = 3 * (fy * w as usize + window.x0 as usize);
+            sensor.span(
+                first,
+                &img[src..src + 3 * ww],
+                &mut rgb[3 * y * ww..3 * (y + 1) * ww],
+            );
+            let wrow = (fy - work.y0 as usize) * work_w + (window.x0 - work.x0) as usize;
+            for x in 0..ww {
+                if let Some(i) = self.inside[wrow + x].checked_sub(1) {
+                    let hit = &self.hits[i as usize];
+                    let arc = hit.arc_mm as f32;
+                    if band.is_some_and(|(lo, hi)| arc >= lo && arc <= hi) {
+                        occluder[y * ww + x] = 1;
+                    } else {
+                        instrument[y * ww + x] = 1;
+                    }
                 }
             }
-            rgb
         }
+        Ok(Frame {
+            width: window.width,
+            height: window.height,
+            rgb,
+            instrument: Mask::from_raw(window.width, window.height, instrument)?,
+            occluder: Mask::from_raw(window.width, window.height, occluder)?,
+        })
     }
+
+    /// Casts the ray through every pixel centre of `work`: `hits` and `inside`.
+    fn cast_centres(&mut self, camera: &Camera, work: Roi) {
+        let Self {
+            raster,
+            hits,
+            inside,
+            ..
+        } = self;
+        hits.clear();
+        inside.clear();
+        inside.resize(work.area() as usize, 0);
+        let ww = work.width as usize;
+        raster.tiles(camera, work, |scene, [x0, y0, x1, y1], candidates| {
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let d = unit_ray(camera, f64::from(x) + 0.5, f64::from(y) + 0.5);
+                    if let Some(hit) = scene.first_hit(candidates, &d) {
+                        hits.push(hit);
+                        inside[(y - work.y0) as usize * ww + (x - work.x0) as usize] =
+                            hits.len() as u32;
+                    }
+                }
+            }
+        });
+    }
+
+    /// The tape's arc-length band: `o.fraction` of the instrument's pixels
+    /// inside the camera's working region ([`Roi::working`], what IBJAE
+    /// sees; the whole image where the camera has none), placed at
+    /// `o.position` along them.
+    fn tape_band(&mut self, camera: &Camera, o: Occlusion) -> Option<(f32, f32)> {
+        let k = &camera.intrinsics;
+        if self.working.as_ref().map(|w| w.0) != Some(*camera) {
+            self.working = Some((*camera, Roi::working(camera).ok()));
+        }
+        let region = self.working.and_then(|w| w.1).unwrap_or(Roi {
+            x0: 0,
+            y0: 0,
+            width: k.width,
+            height: k.height,
+        });
+        let Self { raster, arcs, .. } = self;
+        arcs.clear();
+        raster.tiles(camera, region, |scene, [x0, y0, x1, y1], candidates| {
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let d = unit_ray(camera, f64::from(x) + 0.5, f64::from(y) + 0.5);
+                    if let Some(hit) = scene.first_hit(candidates, &d) {
+                        arcs.push(hit.arc_mm as f32);
+                    }
+                }
+            }
+        });
+        tape_band(arcs, o)
+    }
+
+    /// The scene's light over `region` (linear RGB, row-major): the
+    /// background with the instrument shaded over it, edges anti-aliased.
+    fn shade(
+        &mut self,
+        camera: &Camera,
+        region: Roi,
+        work: Roi,
+        band: Option<(f32, f32)>,
+    ) -> Vec<f32> {
+        let k = camera.intrinsics;
+        let (w, h) = (k.width as usize, k.height as usize);
+        let Some((_, background, mean)) = self.cache.as_ref() else {
+            return vec![0.0; 3 * region.area() as usize];
+        };
+        let env = Surroundings {
+            camera,
+            image: background,
+            mean: *mean,
+        };
+        let (rw, rh) = (region.width as usize, region.height as usize);
+        let mut img = Vec::with_capacity(3 * rw * rh);
+        for y in 0..rh {
+            let start = 3 * ((region.y0 as usize + y) * w + region.x0 as usize);
+            img.extend_from_slice(&background[start..start + 3 * rw]);
+        }
+        let Self {
+            raster,
+            hits,
+            inside,
+            ..
+        } = self;
+        let work_w = work.width as usize;
+        let centre = |x: usize, y: usize| -> Option<u32> {
+            inside[(y - work.y0 as usize) * work_w + (x - work.x0 as usize)].checked_sub(1)
+        };
+        raster.tiles(camera, region, |scene, [x0, y0, x1, y1], candidates| {
+            for y in y0 as usize..y1 as usize {
+                for x in x0 as usize..x1 as usize {
+                    let here = centre(x, y);
+                    // an edge: a neighbour's centre ray disagrees (within the image)
+                    let edge = [
+                        (x.wrapping_sub(1), y),
+                        (x + 1, y),
+                        (x, y.wrapping_sub(1)),
+                        (x, y + 1),
+                    ]
+                    .iter()
+                    .any(|&(nx, ny)| {
+                        nx < w && ny < h && centre(nx, ny).is_some() != here.is_some()
+                    });
+                    let o = 3 * ((y - region.y0 as usize) * rw + (x - region.x0 as usize));
+                    if edge {
+                        let bg = [img[o], img[o + 1], img[o + 2]];
+                        let mut sum = [0.0f32; 3];
+                        for (dx, dy) in EDGE_SAMPLES {
+                            let d = unit_ray(camera, x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
+                            let c = match scene.first_hit(candidates, &d) {
+                                Some(hit) => surface_colour(&scene.bodies, &hit, &d, band, &env).0,
+                                None => bg,
+                            };
+                            (0..3).for_each(|ch| sum[ch] += 0.25 * c[ch]);
+                        }
+                        img[o..o + 3].copy_from_slice(&sum);
+                    } else if let Some(i) = here {
+                        let hit = &hits[i as usize];
+                        let d = unit_ray(camera, x as f64 + 0.5, y as f64 + 0.5);
+                        let c = surface_colour(&scene.bodies, hit, &d, band, &env).0;
+                        img[o..o + 3].copy_from_slice(&c);
+                    }
+                }
+            }
+        });
+        img
+    }
+}
+
+/// Mean colour of an RGB image.
+fn mean_colour(img: &[f32]) -> [f32; 3] {
+    let mut sum = [0.0f64; 3];
+    for px in img.chunks_exact(3) {
+        (0..3).for_each(|k| sum[k] += f64::from(px[k]));
+    }
+    let n = (img.len() / 3).max(1) as f64;
+    sum.map(|s| (s / n) as f32)
 }

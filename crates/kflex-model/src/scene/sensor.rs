@@ -54,6 +54,7 @@ impl Sensor<'_> {
     }
 
     /// Value `i` of the image (`3 · pixel + channel`) as the sensor reads it.
+    #[cfg(test)]
     pub(super) fn pixel(&self, i: usize, v: f32) -> u8 {
         let noise = if self.sigma > 0.0 {
             self.noise(self.bits(i / 4), i % 4)
@@ -63,7 +64,30 @@ impl Sensor<'_> {
         self.quantise(v, noise)
     }
 
+    /// Values `first..first + values.len()` of the image as the sensor reads
+    /// them, into `out`: `pixel(first + j, values[j])` for every `j`, each
+    /// group of four values' random bits drawn once.
+    pub(super) fn span(&self, first: usize, values: &[f32], out: &mut [u8]) {
+        if self.sigma <= 0.0 {
+            for (o, &v) in out.iter_mut().zip(values) {
+                *o = self.quantise(v, 0.0);
+            }
+            return;
+        }
+        let mut group = usize::MAX;
+        let mut bits = 0;
+        for (j, (o, &v)) in out.iter_mut().zip(values).enumerate() {
+            let i = first + j;
+            if i / 4 != group {
+                group = i / 4;
+                bits = self.bits(group);
+            }
+            *o = self.quantise(v, self.noise(bits, i % 4));
+        }
+    }
+
     /// The whole image as the sensor reads it: `pixel(i, values[i])` for every `i`.
+    #[cfg(test)]
     pub(super) fn image(&self, values: &[f32]) -> Vec<u8> {
         let mut out = vec![0u8; values.len()];
         if self.sigma > 0.0 {
@@ -130,7 +154,7 @@ pub(super) fn gaussian_blur(img: &mut [f32], w: usize, h: usize, sigma: f64) {
 mod tests {
     use super::*;
 
-    /// The sensor reads a value the same whether alone or in a whole image.
+    /// The sensor reads a value the same whether alone, in a span or in a whole image.
     #[test]
     fn sensor_pixel_and_image_agree() {
         let normals: Vec<f32> = (0..NORMALS)
@@ -147,6 +171,12 @@ mod tests {
             let image = sensor.image(&values);
             for (i, &v) in values.iter().enumerate() {
                 assert_eq!(image[i], sensor.pixel(i, v), "value {i}");
+            }
+            // a span from any start reads each value as the whole image does
+            for (first, len) in [(0, 1003), (5, 17), (333, 1), (998, 5)] {
+                let mut out = vec![0u8; len];
+                sensor.span(first, &values[first..first + len], &mut out);
+                assert_eq!(out, image[first..first + len], "span {first}+{len}");
             }
         }
     }
