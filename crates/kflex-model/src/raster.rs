@@ -117,8 +117,7 @@ impl Rasterizer {
             for y in y0..y1 {
                 let row = (y - window.y0) as usize * w;
                 for x in x0..x1 {
-                    let d = unit_ray(camera, f64::from(x) + 0.5, f64::from(y) + 0.5);
-                    if scene.any_hit(candidates, &d) {
+                    if scene.any_hit(camera, candidates, f64::from(x) + 0.5, f64::from(y) + 0.5) {
                         mask.set_index(row + (x - window.x0) as usize);
                     }
                 }
@@ -132,14 +131,16 @@ impl Rasterizer {
         self.scene.bodies.clear();
         self.scene.bodies.extend(shape.bodies.iter().map(|b| {
             let to = |p: [f64; 3]| (camera.camera_from_overtube * Point3::from(p)).coords;
-            CameraBody::new(
+            let mut body = CameraBody::new(
                 to(b.a_mm),
                 to(b.b_mm),
                 b.radius_mm,
                 b.ends,
                 b.part,
                 b.arc_mm,
-            )
+            );
+            body.screen = body.pixel_box(camera);
+            body
         }));
     }
 
@@ -160,11 +161,22 @@ impl Rasterizer {
         while cy < wy1 {
             let mut cx = wx0 / COARSE * COARSE;
             while cx < wx1 {
-                let cone = Cone::of(camera, [cx, cy, cx + COARSE, cy + COARSE]);
+                let rect = [cx, cy, cx + COARSE, cy + COARSE];
+                let cone = Cone::of(camera, rect);
+                let rect = rect.map(f64::from);
                 self.coarse.clear();
-                self.coarse.extend(
-                    (0..all).filter(|&i| self.scene.bodies[usize::from(i)].may_meet(&cone)),
-                );
+                self.coarse.extend((0..all).filter(|&i| {
+                    let body = &self.scene.bodies[usize::from(i)];
+                    body.box_meets(rect) && body.may_meet(&cone)
+                }));
+                // nearest first: a ray stops looking once its hit is nearer
+                // than the next body can be (the fine lists keep the order)
+                let bodies = &self.scene.bodies;
+                self.coarse.sort_by(|&i, &j| {
+                    bodies[usize::from(i)]
+                        .near
+                        .total_cmp(&bodies[usize::from(j)].near)
+                });
                 if !self.coarse.is_empty() {
                     let (ex, ey) = ((cx + COARSE).min(wx1), (cy + COARSE).min(wy1));
                     let mut fy = cy.max(wy0) / FINE * FINE;
@@ -205,6 +217,18 @@ impl Rasterizer {
 pub(crate) fn unit_ray(camera: &Camera, u: f64, v: f64) -> Vector3<f64> {
     let [x, y, z] = camera.ray_direction(u, v);
     Vector3::new(x, y, z).normalize()
+}
+
+/// The point of the segment `a`–`b` nearest the origin.
+fn closest_to_origin(a: Vector3<f64>, b: Vector3<f64>) -> Vector3<f64> {
+    let e = b - a;
+    let ee = e.norm_squared();
+    let s = if ee > 1e-18 {
+        (-a.dot(&e) / ee).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    a + e * s
 }
 
 /// The cone of rays through a pixel box: its axis and the sine of its half-angle.
@@ -263,6 +287,11 @@ pub(crate) struct CameraBody {
     spheres: [f64; 2],
     /// The farthest distance of any of its points from the camera, bounded.
     far: f64,
+    /// Pixel box `[u_min, v_min, u_max, v_max]` that holds its image
+    /// (infinite where it reaches the camera's plane).
+    screen: [f64; 4],
+    /// No ray meets it nearer than this, mm.
+    near: f64,
 }
 
 /// Which surface of a body a ray meets.
@@ -300,7 +329,51 @@ impl CameraBody {
             across_c: across.norm_squared() - r * r,
             spheres: [a.norm_squared() - r * r, b.norm_squared() - r * r],
             far: a.norm().max(b.norm()) + r,
+            screen: [
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::INFINITY,
+            ],
+            near: (closest_to_origin(a, b).norm() - r).max(0.0),
         }
+    }
+
+    /// The pixel box of the capsule of its radius (which holds the body):
+    /// the union of its end spheres' boxes of pinhole directions, bent by
+    /// the lens ([`image_box`]); infinite where a sphere reaches the camera's plane.
+    fn pixel_box(&self, camera: &Camera) -> [f64; 4] {
+        match pinhole_box(self.a, self.r).zip(pinhole_box(self.b, self.r)) {
+            Some((p, q)) => image_box(
+                camera,
+                [
+                    p[0].min(q[0]),
+                    p[1].min(q[1]),
+                    p[2].max(q[2]),
+                    p[3].max(q[3]),
+                ],
+            ),
+            None => [
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::INFINITY,
+            ],
+        }
+    }
+
+    /// Whether its pixel box meets the pixel box `[x0, y0, x1, y1]`.
+    #[inline]
+    fn box_meets(&self, [x0, y0, x1, y1]: [f64; 4]) -> bool {
+        let s = &self.screen;
+        s[0] <= x1 && s[2] >= x0 && s[1] <= y1 && s[3] >= y0
+    }
+
+    /// Whether its pixel box holds the pixel position `(u, v)`.
+    #[inline]
+    pub(crate) fn box_holds(&self, u: f64, v: f64) -> bool {
+        let s = &self.screen;
+        u >= s[0] && u <= s[2] && v >= s[1] && v <= s[3]
     }
 
     /// Whether a ray inside `cone` may meet the body. A ray `d` within the
@@ -386,19 +459,51 @@ impl CameraBody {
 }
 
 impl Scene {
-    /// Whether the ray along unit `d` meets any of the bodies `candidates`.
+    /// Whether the ray through pixel position `(u, v)` meets any of the
+    /// bodies `candidates`.
     #[inline]
-    pub(crate) fn any_hit(&self, candidates: &[u16], d: &Vector3<f64>) -> bool {
-        candidates
-            .iter()
-            .any(|&i| self.bodies[usize::from(i)].hit(d).is_some())
+    pub(crate) fn any_hit(&self, camera: &Camera, candidates: &[u16], u: f64, v: f64) -> bool {
+        let mut d = None;
+        candidates.iter().any(|&i| {
+            let body = &self.bodies[usize::from(i)];
+            body.box_holds(u, v)
+                && body
+                    .hit(d.get_or_insert_with(|| unit_ray(camera, u, v)))
+                    .is_some()
+        })
     }
 
-    /// The first body among `candidates` the ray along unit `d` meets.
-    pub(crate) fn first_hit(&self, candidates: &[u16], d: &Vector3<f64>) -> Option<SurfaceHit> {
+    /// The first body among `candidates` the ray through pixel position
+    /// `(u, v)` meets, and the ray.
+    pub(crate) fn first_hit(
+        &self,
+        camera: &Camera,
+        candidates: &[u16],
+        u: f64,
+        v: f64,
+    ) -> (Option<SurfaceHit>, Vector3<f64>) {
+        let d = unit_ray(camera, u, v);
+        (self.first_hit_along(candidates, u, v, &d), d)
+    }
+
+    /// The first body among `candidates` the ray along unit `d`, through
+    /// pixel position `(u, v)`, meets.
+    fn first_hit_along(
+        &self,
+        candidates: &[u16],
+        pu: f64,
+        pv: f64,
+        d: &Vector3<f64>,
+    ) -> Option<SurfaceHit> {
         let mut best: Option<(f64, f64, Surface, usize)> = None;
         for &i in candidates {
             let i = usize::from(i);
+            if best.is_some_and(|b| b.0 < self.bodies[i].near) {
+                break; // candidates come nearest first
+            }
+            if !self.bodies[i].box_holds(pu, pv) {
+                continue;
+            }
             if let Some((t, u, s)) = self.bodies[i].hit(d)
                 && best.is_none_or(|b| t < b.0)
             {

@@ -251,7 +251,7 @@ impl SceneRenderer {
         self.raster.prepare(camera, shape);
         self.cast_centres(camera, work);
         let band = match params.occlusion {
-            Some(o) => self.tape_band(camera, o),
+            Some(o) => self.tape_band(camera, o, work),
             None => None,
         };
         let mut img = self.shade(camera, shaded_region, work, band);
@@ -330,8 +330,8 @@ impl SceneRenderer {
         raster.tiles(camera, work, |scene, [x0, y0, x1, y1], candidates| {
             for y in y0..y1 {
                 for x in x0..x1 {
-                    let d = unit_ray(camera, f64::from(x) + 0.5, f64::from(y) + 0.5);
-                    if let Some(hit) = scene.first_hit(candidates, &d) {
+                    let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+                    if let (Some(hit), _) = scene.first_hit(camera, candidates, u, v) {
                         hits.push(hit);
                         inside[(y - work.y0) as usize * ww + (x - work.x0) as usize] =
                             hits.len() as u32;
@@ -345,7 +345,7 @@ impl SceneRenderer {
     /// inside the camera's working region ([`Roi::working`], what IBJAE
     /// sees; the whole image where the camera has none), placed at
     /// `o.position` along them.
-    fn tape_band(&mut self, camera: &Camera, o: Occlusion) -> Option<(f32, f32)> {
+    fn tape_band(&mut self, camera: &Camera, o: Occlusion, work: Roi) -> Option<(f32, f32)> {
         let k = &camera.intrinsics;
         if self.working.as_ref().map(|w| w.0) != Some(*camera) {
             self.working = Some((*camera, Roi::working(camera).ok()));
@@ -356,13 +356,37 @@ impl SceneRenderer {
             width: k.width,
             height: k.height,
         });
-        let Self { raster, arcs, .. } = self;
+        let Self {
+            raster,
+            arcs,
+            hits,
+            inside,
+            ..
+        } = self;
         arcs.clear();
+        let holds = |outer: Roi, inner: Roi| {
+            outer.x0 <= inner.x0
+                && outer.y0 <= inner.y0
+                && outer.x0 + outer.width >= inner.x0 + inner.width
+                && outer.y0 + outer.height >= inner.y0 + inner.height
+        };
+        if holds(work, region) {
+            // the centre rays already cast there
+            for y in region.y0..region.y0 + region.height {
+                let row = (y - work.y0) as usize * work.width as usize;
+                for x in region.x0..region.x0 + region.width {
+                    if let Some(i) = inside[row + (x - work.x0) as usize].checked_sub(1) {
+                        arcs.push(hits[i as usize].arc_mm as f32);
+                    }
+                }
+            }
+            return tape_band(arcs, o);
+        }
         raster.tiles(camera, region, |scene, [x0, y0, x1, y1], candidates| {
             for y in y0..y1 {
                 for x in x0..x1 {
-                    let d = unit_ray(camera, f64::from(x) + 0.5, f64::from(y) + 0.5);
-                    if let Some(hit) = scene.first_hit(candidates, &d) {
+                    let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+                    if let (Some(hit), _) = scene.first_hit(camera, candidates, u, v) {
                         arcs.push(hit.arc_mm as f32);
                     }
                 }
@@ -426,10 +450,12 @@ impl SceneRenderer {
                         let bg = [img[o], img[o + 1], img[o + 2]];
                         let mut sum = [0.0f32; 3];
                         for (dx, dy) in EDGE_SAMPLES {
-                            let d = unit_ray(camera, x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
-                            let c = match scene.first_hit(candidates, &d) {
-                                Some(hit) => surface_colour(&scene.bodies, &hit, &d, band, &env).0,
-                                None => bg,
+                            let (u, v) = (x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
+                            let c = match scene.first_hit(camera, candidates, u, v) {
+                                (Some(hit), d) => {
+                                    surface_colour(&scene.bodies, &hit, &d, band, &env).0
+                                }
+                                (None, _) => bg,
                             };
                             (0..3).for_each(|ch| sum[ch] += 0.25 * c[ch]);
                         }
