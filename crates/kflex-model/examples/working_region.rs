@@ -21,15 +21,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         [] => Roi::WORKING_POSES,
         _ => return Err("usage: working_region [θ0 θ1 d0 d1]".into()),
     };
-    let mut camera = Camera::default();
-    if let Ok(b) = std::env::var("BACK") {
-        let b: f64 = b.parse()?;
-        let tilt: f64 = std::env::var("TILT").map_or(Ok(0.0), |t| t.parse())?;
-        camera.camera_from_overtube = nalgebra::Isometry3::new(
-            nalgebra::Vector3::new(0.0, 0.0, b),
-            nalgebra::Vector3::new(tilt.to_radians(), 0.0, 0.0),
-        );
-    }
+    let camera = Camera::default();
     let instrument = Instrument::kflex();
     let roi = Roi::for_workspace(&camera, &instrument, &poses, Roi::WORKING_MARGIN_PX)?;
     println!(
