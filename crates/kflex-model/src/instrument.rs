@@ -231,6 +231,23 @@ impl Instrument {
         translation_mm: f64,
         out: &mut InstrumentShape,
     ) -> Result<()> {
+        let two_n = 2 * self.n_segments as usize;
+        let (l, r) = (self.joint.link_length_mm, self.joint.link_radius_mm);
+        self.build(theta_deg, translation_mm, out, |_| {
+            (l, r, 1.0 / two_n as f64)
+        })
+    }
+
+    /// The shape at bend `theta_deg` and translation `translation_mm`, with
+    /// link `j`'s length, radius and share of the bend from `link(j)` (the
+    /// shares sum to 1).
+    pub(crate) fn build(
+        &self,
+        theta_deg: f64,
+        translation_mm: f64,
+        out: &mut InstrumentShape,
+        link: impl Fn(usize) -> (f64, f64, f64),
+    ) -> Result<()> {
         check_pose(
             self.joint.max_theta_deg,
             &self.translation,
@@ -240,8 +257,7 @@ impl Instrument {
         )?;
         let [ox, oy] = self.params.channel_offset_mm;
         let two_n = 2 * self.n_segments as usize;
-        let phi = theta_deg.to_radians() / two_n as f64;
-        let l = self.joint.link_length_mm;
+        let theta = theta_deg.to_radians();
         let r = self.joint.link_radius_mm;
         out.bodies.clear();
         let mut p = [ox, oy, translation_mm];
@@ -258,9 +274,10 @@ impl Instrument {
         };
         let mut arc = translation_mm;
         let mut heading = 0.0;
-        let gap = DISC_GAP * l;
         for j in 0..two_n {
-            heading += phi;
+            let (l, r, share) = link(j);
+            let gap = DISC_GAP * l;
+            heading += theta * share;
             let dir = [heading.sin(), 0.0, heading.cos()];
             let next = along(p, dir, l);
             // the link's disc, short of its contacts by half a gap at each end

@@ -49,6 +49,7 @@
 #![doc = include_str!("../CALIBRATION.md")]
 #![warn(missing_docs)]
 
+mod as_built;
 mod calibration;
 mod camera;
 mod error;
@@ -70,6 +71,7 @@ mod transmission;
 mod working;
 mod workspace;
 
+pub use as_built::{BuildTolerances, BuiltInstrument};
 pub use camera::{Camera, Intrinsics, Lens};
 pub use error::{ModelError, Result};
 pub use hysteresis::{Backlash, BoucWen, BoucWenParams, Play};
