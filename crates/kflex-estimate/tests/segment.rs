@@ -335,3 +335,87 @@ fn thresholds_out_of_range_are_errors() {
         }
     }
 }
+
+/// A 3840×2160 frame (a 4K endoscope; 8.3 MP) of one colour.
+fn uniform_4k(rgb: [u8; 3]) -> (Vec<u8>, u32, u32) {
+    let (w, h) = (3840u32, 2160u32);
+    (rgb.repeat((w * h) as usize), w, h)
+}
+
+const WHOLE_4K: Roi = Roi {
+    x0: 0,
+    y0: 0,
+    width: 3840,
+    height: 2160,
+};
+
+/// The colour sums of a region this large overflow 32 bits: a uniform
+/// metal-grey frame is all instrument at every grey level, in debug builds
+/// too (overflow checks on), and a uniform tissue-red one is no instrument.
+#[test]
+fn uniform_4k_frames_are_all_or_nothing() {
+    for level in [120u8, 160, 180, 220] {
+        let (rgb, w, h) = uniform_4k([level - 4, level - 2, level + 4]);
+        let seg = segment(&rgb, w, h, WHOLE_4K, &SegmentParams::default())
+            .unwrap_or_else(|e| panic!("grey {level}: {e}"));
+        assert_eq!(seg.full.count(), (w * h) as usize, "grey {level}");
+        assert_eq!(seg.small.count(), 48 * 48, "grey {level}");
+    }
+    for red in [[180u8, 70, 60], [230, 150, 120], [90, 20, 25]] {
+        let (rgb, w, h) = uniform_4k(red);
+        assert!(
+            matches!(
+                segment(&rgb, w, h, WHOLE_4K, &SegmentParams::default()),
+                Err(EstimateError::NoInstrument { pixels: 0, .. })
+            ),
+            "{red:?}"
+        );
+    }
+}
+
+/// A 4K frame of random 240×240 tiles, each grey metal or red tissue with a
+/// little seeded noise: the segmentation equals the tiles (the reference is
+/// the tile map itself; tiles are aligned to the 2×2 cells, so no cell mixes).
+#[test]
+fn random_4k_tiles_are_found_exactly() {
+    let (w, h) = (3840usize, 2160usize);
+    let tile = 240;
+    let (tw, th) = (w / tile, h.div_ceil(tile));
+    for seed in [1u64, 7, 42] {
+        let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        // about a third metal, in tiles large enough to pass the component filter
+        let tiles: Vec<bool> = (0..tw * th).map(|_| next() % 3 == 0).collect();
+        let mut rgb = vec![0u8; 3 * w * h];
+        let mut truth = vec![0u8; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let metal = tiles[(y / tile) * tw + x / tile];
+                let jitter = (next() >> 61) as u8; // 0..=7
+                let c = if metal {
+                    [150 + jitter, 153 + jitter, 160 + jitter]
+                } else {
+                    [180 + jitter, 70 + jitter, 60 + jitter]
+                };
+                rgb[3 * (y * w + x)..][..3].copy_from_slice(&c);
+                truth[y * w + x] = u8::from(metal);
+            }
+        }
+        let seg = segment(&rgb, w as u32, h as u32, WHOLE_4K, &SegmentParams::default())
+            .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        let truth = Mask::from_raw(w as u32, h as u32, truth).unwrap();
+        let wrong = seg
+            .full
+            .data()
+            .iter()
+            .zip(truth.data())
+            .filter(|(a, b)| a != b)
+            .count();
+        assert_eq!(wrong, 0, "seed {seed}: {wrong} pixels differ from the tiles");
+    }
+}

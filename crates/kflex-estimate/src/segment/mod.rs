@@ -62,7 +62,7 @@ pub struct Segmentation {
     pub small: Mask,
 }
 
-/// Largest region of interest, px (colour sums of a region fit in `u32`).
+/// Largest region of interest, px (2²⁴: a 4K frame, 8.3 MP, fits; block sums are `i64`).
 const MAX_ROI_PIXELS: u64 = 1 << 24;
 
 /// Segments the instrument in `roi` of an RGB frame (`width × height`, 8 bits,
@@ -129,7 +129,7 @@ struct Scratch {
     cell_ranges: [[[Vec<i16>; 2]; 2]; 2],
     narrow: Vec<i16>,
     narrow_cells: Vec<i16>,
-    wide: Vec<i32>,
+    wide: Vec<i64>,
     stack: Vec<(usize, usize, usize)>,
     labels: Vec<u32>,
     regions: Vec<Region>,

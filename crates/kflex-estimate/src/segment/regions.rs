@@ -12,15 +12,17 @@ pub(super) struct Region {
 
 impl Region {
     /// From the sums of brightness, redness and `g − b` over `count` pixels.
-    fn from_feature_sums([bright, red, gb]: [i32; 3], count: usize) -> Region {
-        let r = (bright + red) as f32 / 3.0;
-        let g_plus_b = bright as f32 - r;
-        let scale = 1.0 / (255.0 * count as f32);
+    /// The sums are exact in `i64`; the means are taken in `f64` (exact for
+    /// any sum below 2⁵³) and rounded to `f32` once.
+    fn from_feature_sums([bright, red, gb]: [i64; 3], count: usize) -> Region {
+        let r = (bright + red) as f64 / 3.0;
+        let g_plus_b = bright as f64 - r;
+        let scale = 1.0 / (255.0 * count as f64);
         Region {
             mean: [
-                r * scale,
-                0.5 * (g_plus_b + gb as f32) * scale,
-                0.5 * (g_plus_b - gb as f32) * scale,
+                (r * scale) as f32,
+                (0.5 * (g_plus_b + gb as f64) * scale) as f32,
+                (0.5 * (g_plus_b - gb as f64) * scale) as f32,
             ],
             count: count as f32,
         }
