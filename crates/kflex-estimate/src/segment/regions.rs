@@ -140,30 +140,6 @@ pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, distance: f32) {
     }
 }
 
-/// Thresholds each merged region by its mean colour (see
-/// [`Segmenter`](super::Segmenter): metallic is unsaturated, not reddish, not dark) and marks the
-/// cells of instrument regions in `s.cells`.
-pub(super) fn threshold(s: &mut Scratch, p: &SegmentParams, cells_total: usize) {
-    let Scratch {
-        regions,
-        parent,
-        instrument,
-        labels,
-        cells,
-        ..
-    } = s;
-    instrument.clear();
-    instrument.reserve(cells_total);
-    instrument.extend(parent.iter().map(|&root| {
-        let m = regions[root as usize].mean;
-        let (mx, mn) = (m[0].max(m[1]).max(m[2]), m[0].min(m[1]).min(m[2]));
-        let redness = m[0] - 0.5 * (m[1] + m[2]);
-        u8::from(mx > p.min_value && (mx - mn) / mx < p.max_saturation && redness < p.max_redness)
-    }));
-    cells.clear();
-    cells.extend(labels.iter().map(|&l| instrument[l as usize]));
-}
-
 /// Clears the 4-connected components of set cells in `s.cells` (`cols × rows`
 /// cells over `rw × rh` pixels) that hold fewer than `min` pixels. Returns the
 /// pixels left set.
