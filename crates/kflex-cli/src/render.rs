@@ -95,28 +95,46 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     save_mask(&args.out, "silhouette_48.png", &silhouette)?;
     save_mask(&args.out, "instrument_mask.png", &frame.instrument)?;
     save_mask(&args.out, "occluder_mask.png", &frame.occluder)?;
-    match segment(
+    // every failure of the segmentation is the command's failure (non-zero
+    // exit): the PNGs of the frame are written first, to look at
+    roi.check_within(frame.width, frame.height).with_context(|| {
+        format!(
+            "the region of interest \
+             {}×{} px at ({}, {}) does not fit the {}×{} frame",
+            roi.width, roi.height, roi.x0, roi.y0, frame.width, frame.height
+        )
+    })?;
+    let truth = frame.instrument.crop(roi)?;
+    if truth.count() == 0 {
+        bail!(
+            "segmentation: nothing to segment: no visible instrument in the region of interest \
+             {}×{} px at ({}, {}) (--occlusion {} covers {} px of it)",
+            roi.width,
+            roi.height,
+            roi.x0,
+            roi.y0,
+            args.occlusion,
+            frame.occluder.crop(roi)?.count()
+        );
+    }
+    println!(
+        "region of interest: {}×{} px at ({}, {})",
+        roi.width, roi.height, roi.x0, roi.y0
+    );
+    let seg = segment(
         &frame.rgb,
         frame.width,
         frame.height,
         roi,
         &SegmentParams::default(),
-    ) {
-        Ok(seg) => {
-            println!(
-                "region of interest: {}×{} px at ({}, {})",
-                roi.width, roi.height, roi.x0, roi.y0
-            );
-            save_mask(&args.out, "segmentation_roi.png", &seg.full)?;
-            save_mask(&args.out, "segmentation_48.png", &seg.small)?;
-            let truth = frame.instrument.crop(roi)?;
-            println!(
-                "segmentation: IoU {:.3} with the visible instrument in the region of interest",
-                seg.full.iou(&truth)?
-            );
-        }
-        Err(e) => println!("segmentation: {e}"),
-    }
+    )
+    .context("segmentation")?;
+    save_mask(&args.out, "segmentation_roi.png", &seg.full)?;
+    save_mask(&args.out, "segmentation_48.png", &seg.small)?;
+    println!(
+        "segmentation: IoU {:.3} with the visible instrument in the region of interest",
+        seg.full.iou(&truth)?
+    );
     println!(
         "wrote frame.png, silhouette_48.png, instrument_mask.png, occluder_mask.png and the segmentation to {}",
         args.out.display()

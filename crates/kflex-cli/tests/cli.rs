@@ -462,3 +462,46 @@ fn a_spread_outside_its_range_is_refused_naming_the_flag() {
         );
     }
 }
+
+/// `render --hd` segments in the working region of the HD camera itself.
+#[test]
+fn render_hd_segments_in_its_own_region() {
+    let dir = scratch("render-hd");
+    let d = dir.to_str().unwrap();
+    let out = kflex(&["render", "--hd", "--out", d]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("segmentation: IoU"), "{stdout}");
+    // the region named lies inside 1920×1080
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("region of interest"))
+        .expect("region line");
+    let nums: Vec<u32> = line
+        .split(|c: char| !c.is_ascii_digit())
+        .filter(|t| !t.is_empty())
+        .map(|t| t.parse().unwrap())
+        .collect();
+    let [w, h, x0, y0] = nums[..] else {
+        panic!("{line}")
+    };
+    assert!(x0 + w <= 1920 && y0 + h <= 1080, "{line}");
+    assert!(dir.join("segmentation_48.png").exists());
+}
+
+/// Fully taped: the frame is written, then a clear non-zero error, not
+/// "no instrument" with exit code 0.
+#[test]
+fn fully_taped_instrument_is_an_error() {
+    let dir = scratch("render-taped");
+    let d = dir.to_str().unwrap();
+    assert_refused(
+        &["render", "--occlusion", "1.0", "--out", d],
+        "no visible instrument in the region of interest",
+    );
+    assert!(dir.join("frame.png").exists());
+}

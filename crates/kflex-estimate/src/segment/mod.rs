@@ -1,6 +1,7 @@
 //! Region-based segmentation (the paper's Fig. 4b): region of interest,
 //! split, merge, threshold — giving the 48×48 binary image IBJAE consumes.
 
+mod classify;
 mod pyramid;
 mod regions;
 mod resample;
@@ -10,7 +11,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{EstimateError, Result};
 use pyramid::{Level, Region2d, pyramid};
-use regions::{Region, drop_small_components, merge, split, threshold};
+use classify::classify;
+use regions::{Region, drop_small_components, merge, split};
 use resample::resample_cells;
 
 /// Segmentation thresholds. Colours on the [0, 1] scale.
@@ -23,12 +25,17 @@ pub struct SegmentParams {
     pub min_block: u32,
     /// Largest colour distance between adjacent regions that are merged.
     pub merge_distance: f32,
-    /// Largest saturation of an instrument region.
-    pub max_saturation: f32,
-    /// Largest redness `r − (g + b)/2` of an instrument region (tissue is reddish).
-    pub max_redness: f32,
-    /// Smallest brightness (HSV value) of an instrument region.
-    pub min_value: f32,
+    /// The instrument's metal as chromaticity `[x, y]` (redness and green
+    /// against blue over brightness, see [`Segmenter`]): where the threshold's
+    /// instrument class starts. The default is the K-FLEX metal's base colour
+    /// `(0.62, 0.64, 0.68)`.
+    pub metal_chroma: [f32; 2],
+    /// Smallest brightness of an instrument region, as a share of the median
+    /// brightness of the region of interest (darker is lumen or shadow).
+    pub min_relative_value: f32,
+    /// A region whose darkest channel is above this is clipped specular light
+    /// and takes the class of the regions around it.
+    pub clip_value: f32,
     /// Smallest instrument component kept, as a share of the region of interest.
     pub min_component: f32,
     /// Smallest instrument share of the region of interest that counts as found.
@@ -43,9 +50,9 @@ impl Default for SegmentParams {
             split_range: 0.12,
             min_block: 2,
             merge_distance: 0.08,
-            max_saturation: 0.2,
-            max_redness: 0.06,
-            min_value: 0.22,
+            metal_chroma: classify::chroma([0.62, 0.64, 0.68]),
+            min_relative_value: 0.3,
+            clip_value: 0.94,
             min_component: 0.004,
             min_instrument: 0.002,
             out: 48,
@@ -62,7 +69,7 @@ pub struct Segmentation {
     pub small: Mask,
 }
 
-/// Largest region of interest, px (colour sums of a region fit in `u32`).
+/// Largest region of interest, px (2²⁴: a 4K frame, 8.3 MP, fits; block sums are `i64`).
 const MAX_ROI_PIXELS: u64 = 1 << 24;
 
 /// Segments the instrument in `roi` of an RGB frame (`width × height`, 8 bits,
@@ -101,10 +108,18 @@ pub fn segment(
 ///    leaves' adjacency, on the regions' running means). No leaf is smaller than
 ///    a 2×2 cell, so merging, thresholding and the component filter work on the
 ///    grid of cells, a quarter of the pixels.
-/// 4. **Threshold**: a region is instrument where its mean colour is metallic —
-///    unsaturated (`(max − min)/max < max_saturation`), not reddish
-///    (`r − (g + b)/2 < max_redness`) and not dark (`max > min_value`) — and
-///    tissue where it is reddish or dark (lumen).
+/// 4. **Threshold**, from the frame's own statistics: each merged region's
+///    mean colour is taken to chromaticity (hue and saturation without
+///    brightness, so a gain leaves it unchanged), and a region is instrument
+///    where it is nearer the metal's chromaticity ([`SegmentParams::metal_chroma`])
+///    than the frame's tissue colour, which is estimated from the region of
+///    interest itself (the median of the regions least like metal, then of the
+///    tissue class, re-estimated twice). Regions darker than
+///    [`SegmentParams::min_relative_value`] of the region's median brightness
+///    are tissue (lumen); clipped specular regions (darkest channel above
+///    [`SegmentParams::clip_value`]) take the class of the regions around
+///    them. A frame of one colour has nothing to tell apart and finds no
+///    instrument, whatever the colour.
 ///    Tape is red, so a taped part is lost, as in the paper. Connected instrument
 ///    components smaller than [`SegmentParams::min_component`] of the region
 ///    (specular spots on wet mucosa) are dropped.
@@ -129,12 +144,16 @@ struct Scratch {
     cell_ranges: [[[Vec<i16>; 2]; 2]; 2],
     narrow: Vec<i16>,
     narrow_cells: Vec<i16>,
-    wide: Vec<i32>,
+    wide: Vec<i64>,
     stack: Vec<(usize, usize, usize)>,
     labels: Vec<u32>,
     regions: Vec<Region>,
     parent: Vec<u32>,
     instrument: Vec<u8>,
+    /// Per region: dark, bright or clipped (see `classify`).
+    region_class: Vec<u8>,
+    /// Per clipped region: cell edges shared with tissue and with instrument.
+    votes: Vec<[u32; 2]>,
     cells: Vec<u8>,
     seen: Vec<bool>,
     flood: Vec<usize>,
@@ -159,9 +178,10 @@ impl Segmenter {
         let check = |name, value: f32, lo, hi| Bounds::closed(lo, hi).check(name, f64::from(value));
         check("split_range", params.split_range, 0.0, 3.0)?;
         check("merge_distance", params.merge_distance, 0.0, 2.0)?;
-        check("max_saturation", params.max_saturation, 0.0, 1.0)?;
-        check("max_redness", params.max_redness, -1.0, 1.0)?;
-        check("min_value", params.min_value, 0.0, 1.0)?;
+        check("metal_chroma[0]", params.metal_chroma[0], -1.0, 1.0)?;
+        check("metal_chroma[1]", params.metal_chroma[1], -1.0, 1.0)?;
+        check("min_relative_value", params.min_relative_value, 0.0, 1.0)?;
+        check("clip_value", params.clip_value, 0.0, 1.0)?;
         check("min_component", params.min_component, 0.0, 1.0)?;
         check("min_instrument", params.min_instrument, 0.0, 1.0)?;
         Bounds::closed(1.0, 4096.0).check("out", f64::from(params.out))?;
@@ -252,7 +272,7 @@ impl Segmenter {
         let depth = pyramid(&region, s);
         split(s, depth, rw, rh, p);
         merge(s, cols, rows, p.merge_distance);
-        threshold(s, &p, cols * rows);
+        classify(s, &p, cols);
         let min_component = (p.min_component * (rw * rh) as f32).ceil() as usize;
         let count = drop_small_components(s, cols, rows, rw, rh, min_component);
         let min = (p.min_instrument * (rw * rh) as f32).ceil().max(1.0) as usize;

@@ -14,8 +14,9 @@ pub(super) struct Level {
     pub(super) rows: usize,
     pub(super) lo: [Vec<i16>; 2],
     pub(super) hi: [Vec<i16>; 2],
-    /// Sums of brightness, redness and `g − b`.
-    pub(super) sum: [Vec<i32>; 3],
+    /// Sums of brightness, redness and `g − b`: 64 bits, as a block of the
+    /// largest region (2²⁴ px) sums to 2²⁴ · 765 > 2³¹.
+    pub(super) sum: [Vec<i64>; 3],
 }
 
 /// A region of an RGB frame: row `y` starts at byte `first + y · stride`.
@@ -178,8 +179,8 @@ fn pyramid_portable(region: &Region2d, s: &mut Scratch) -> usize {
             for ((v, &p), &q) in v.iter_mut().zip(&fa[k]).zip(&fb[k]) {
                 *v = if single { p } else { p + q };
             }
-            let wide_add = |p: i16, q: i16| i32::from(p) + i32::from(q);
-            combine_pairs(v, wide_add, i32::from, &mut base.sum[k]);
+            let wide_add = |p: i16, q: i16| i64::from(p) + i64::from(q);
+            combine_pairs(v, wide_add, i64::from, &mut base.sum[k]);
         }
         let Some(l1) = level1.as_deref_mut() else {
             continue;
@@ -257,7 +258,7 @@ mod tests {
             let top = &fast.levels[depth - 1];
             assert_eq!((top.cols, top.rows), (1, 1));
             // the top block's sums are the sums over all pixels
-            let bright: i32 = rgb.iter().map(|&c| i32::from(c)).sum();
+            let bright: i64 = rgb.iter().map(|&c| i64::from(c)).sum();
             assert_eq!(top.sum[0], vec![bright], "{w}×{h}");
         }
     }

@@ -12,15 +12,17 @@ pub(super) struct Region {
 
 impl Region {
     /// From the sums of brightness, redness and `g − b` over `count` pixels.
-    fn from_feature_sums([bright, red, gb]: [i32; 3], count: usize) -> Region {
-        let r = (bright + red) as f32 / 3.0;
-        let g_plus_b = bright as f32 - r;
-        let scale = 1.0 / (255.0 * count as f32);
+    /// The sums are exact in `i64`; the means are taken in `f64` (exact for
+    /// any sum below 2⁵³) and rounded to `f32` once.
+    fn from_feature_sums([bright, red, gb]: [i64; 3], count: usize) -> Region {
+        let r = (bright + red) as f64 / 3.0;
+        let g_plus_b = bright as f64 - r;
+        let scale = 1.0 / (255.0 * count as f64);
         Region {
             mean: [
-                r * scale,
-                0.5 * (g_plus_b + gb as f32) * scale,
-                0.5 * (g_plus_b - gb as f32) * scale,
+                (r * scale) as f32,
+                (0.5 * (g_plus_b + gb as f64) * scale) as f32,
+                (0.5 * (g_plus_b - gb as f64) * scale) as f32,
             ],
             count: count as f32,
         }
@@ -136,30 +138,6 @@ pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, distance: f32) {
         let root = find(parent, i);
         parent[i as usize] = root;
     }
-}
-
-/// Thresholds each merged region by its mean colour (see
-/// [`Segmenter`](super::Segmenter): metallic is unsaturated, not reddish, not dark) and marks the
-/// cells of instrument regions in `s.cells`.
-pub(super) fn threshold(s: &mut Scratch, p: &SegmentParams, cells_total: usize) {
-    let Scratch {
-        regions,
-        parent,
-        instrument,
-        labels,
-        cells,
-        ..
-    } = s;
-    instrument.clear();
-    instrument.reserve(cells_total);
-    instrument.extend(parent.iter().map(|&root| {
-        let m = regions[root as usize].mean;
-        let (mx, mn) = (m[0].max(m[1]).max(m[2]), m[0].min(m[1]).min(m[2]));
-        let redness = m[0] - 0.5 * (m[1] + m[2]);
-        u8::from(mx > p.min_value && (mx - mn) / mx < p.max_saturation && redness < p.max_redness)
-    }));
-    cells.clear();
-    cells.extend(labels.iter().map(|&l| instrument[l as usize]));
 }
 
 /// Clears the 4-connected components of set cells in `s.cells` (`cols × rows`

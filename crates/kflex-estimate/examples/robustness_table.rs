@@ -1,0 +1,105 @@
+//! Prints the segmentation's robustness table (issue 9): for each condition,
+//! the minimum and median IoU over the matrix of cases, in the working region
+//! and on the bend and gripper alone, and the frames wrongly called empty.
+//!
+//! `cargo run --release -p kflex-estimate --example robustness_table`
+
+#[path = "../tests/matrix/mod.rs"]
+mod matrix;
+
+use kflex_estimate::{EstimateError, SegmentParams, Segmenter};
+use kflex_model::Background;
+use matrix::{Bench, Condition, Tissue, cases, min_median};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let mut bench = Bench::default();
+    let mut segmenter = Segmenter::new(SegmentParams::default())?;
+    let cases = cases();
+    println!(
+        "{} cases a condition (backgrounds {:?} × θ {:?} deg × d {:?} mm), region {}×{} at ({}, {})",
+        cases.len(),
+        Background::ALL,
+        matrix::THETAS_DEG,
+        matrix::DS_MM,
+        bench.roi.width,
+        bench.roi.height,
+        bench.roi.x0,
+        bench.roi.y0
+    );
+    println!();
+    println!("| condition | no instrument | ROI IoU min | ROI IoU median | distal IoU min | distal IoU median |");
+    println!("|---|---|---|---|---|---|");
+    let fmt = |v: Option<(f64, f64)>| match v {
+        Some((min, median)) => (format!("{min:.3}"), format!("{median:.3}")),
+        None => ("–".into(), "–".into()),
+    };
+    for (goal, condition) in Condition::GOALS
+        .iter()
+        .map(|c| (true, *c))
+        .chain(Condition::BEYOND.iter().map(|c| (false, *c)))
+    {
+        let (mut roi, mut distal, mut missed) = (Vec::new(), Vec::new(), 0);
+        let mut worst = None;
+        for &case in &cases {
+            match bench.score(&mut segmenter, case, condition) {
+                Ok(s) => {
+                    if worst.is_none_or(|(w, _)| s.roi < w) {
+                        worst = Some((s.roi, case));
+                    }
+                    roi.push(s.roi);
+                    distal.extend(s.distal);
+                }
+                Err(EstimateError::NoInstrument { .. }) => {
+                    missed += 1;
+                    roi.push(0.0);
+                    distal.push(0.0);
+                }
+                Err(e) => return Err(e.into()),
+            }
+        }
+        let (rmin, rmed) = fmt(min_median(&mut roi));
+        let (dmin, dmed) = fmt(min_median(&mut distal));
+        let name = if goal {
+            condition.name()
+        } else {
+            format!("{} (past the goals)", condition.name())
+        };
+        println!("| {name} | {missed} | {rmin} | {rmed} | {dmin} | {dmed} |");
+        if std::env::var_os("KFLEX_WORST").is_some()
+            && let Some((iou, case)) = worst
+        {
+            eprintln!("  worst {iou:.3}: {case:?}");
+        }
+    }
+    println!();
+    let mut false_found = Vec::new();
+    let tissues = [
+        None,
+        Some(Tissue::Pale),
+        Some(Tissue::BlueGreen),
+        Some(Tissue::Yellow),
+        Some(Tissue::Grey),
+        Some(Tissue::White),
+    ];
+    let mut total = 0;
+    for background in Background::ALL {
+        for tissue in tissues {
+            for seed in 0..3 {
+                total += 1;
+                let f = bench.empty_frame(background, tissue, seed);
+                if let Ok(seg) = segmenter.segment(&f.rgb, f.width, f.height, bench.roi) {
+                    false_found.push(format!(
+                        "{background:?} {tissue:?} seed {seed}: {} px",
+                        seg.full.count()
+                    ));
+                }
+            }
+        }
+    }
+    println!(
+        "frames without the instrument called instrument: {} of {total} {:?}",
+        false_found.len(),
+        false_found
+    );
+    Ok(())
+}

@@ -1,0 +1,85 @@
+//! The robustness matrix (issue 9), asserted: per condition, every case's IoU
+//! in the working region and on the bend and gripper alone. Goals: 0.90 and
+//! 0.85. Where a condition does not reach them, the bound asserted is what it
+//! reaches (measured, rounded down), marked BELOW GOAL, so a regression still
+//! fails. `examples/robustness_table.rs` prints the table.
+
+mod matrix;
+
+use kflex_estimate::{SegmentParams, Segmenter};
+use kflex_model::Background;
+use matrix::{Bench, Condition, Tissue, cases};
+
+/// `(condition, least ROI IoU, least distal IoU)`.
+const BOUNDS: [(Condition, f64, f64); 12] = [
+    (Condition::Baseline, 0.90, 0.85),
+    (Condition::Gain(0.4), 0.40, 0.0), // BELOW GOAL: 0.444 / 0.000 (Larynx θ 30 d 10)
+    (Condition::Gain(1.6), 0.90, 0.80), // BELOW GOAL (distal): 0.827
+    (Condition::Noise(0.1), 0.90, 0.85),
+    (Condition::Blur(3.0), 0.90, 0.85),
+    (Condition::Tint(0.25), 0.90, 0.85),
+    (Condition::Specular, 0.90, 0.85),
+    (Condition::Tissue(Tissue::Grey), 0.65, 0.55), // BELOW GOAL: 0.698 / 0.567
+    (Condition::Tissue(Tissue::Pale), 0.85, 0.75), // BELOW GOAL: 0.855 / 0.793
+    (Condition::Tissue(Tissue::White), 0.85, 0.60), // BELOW GOAL: 0.874 / 0.628
+    (Condition::Tissue(Tissue::BlueGreen), 0.90, 0.85),
+    (Condition::Tissue(Tissue::Yellow), 0.90, 0.85),
+];
+
+#[test]
+fn every_case_of_every_condition_meets_its_bound() {
+    let mut bench = Bench::default();
+    let mut segmenter = Segmenter::new(SegmentParams::default()).unwrap();
+    let mut failures = Vec::new();
+    for (condition, roi_min, distal_min) in BOUNDS {
+        for case in cases() {
+            match bench.score(&mut segmenter, case, condition) {
+                Ok(s) => {
+                    if s.roi < roi_min || s.distal.is_some_and(|d| d < distal_min) {
+                        failures.push(format!("{}: {case:?}: {s:?}", condition.name()));
+                    }
+                }
+                Err(e) => failures.push(format!("{}: {case:?}: {e}", condition.name())),
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Frames without the instrument give no instrument, on every background and
+/// repainted tissue colour; the same frames with it do not.
+#[test]
+fn no_instrument_only_when_there_is_none() {
+    let mut bench = Bench::default();
+    let mut segmenter = Segmenter::new(SegmentParams::default()).unwrap();
+    let roi = bench.roi;
+    for background in Background::ALL {
+        for tissue in [
+            None,
+            Some(Tissue::Pale),
+            Some(Tissue::BlueGreen),
+            Some(Tissue::Yellow),
+            Some(Tissue::Grey),
+            Some(Tissue::White),
+        ] {
+            for seed in 0..2 {
+                let f = bench.empty_frame(background, tissue, seed);
+                let got = segmenter.segment(&f.rgb, f.width, f.height, roi);
+                assert!(
+                    got.is_err(),
+                    "{background:?} {tissue:?} seed {seed}: {} px called instrument",
+                    got.map(|s| s.full.count()).unwrap_or(0)
+                );
+            }
+        }
+    }
+    for case in cases() {
+        for condition in [Condition::Baseline, Condition::Tissue(Tissue::Grey)] {
+            assert!(
+                bench.score(&mut segmenter, case, condition).is_ok(),
+                "{case:?} {}",
+                condition.name()
+            );
+        }
+    }
+}
