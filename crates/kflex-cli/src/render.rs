@@ -97,13 +97,14 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     save_mask(&args.out, "occluder_mask.png", &frame.occluder)?;
     // every failure of the segmentation is the command's failure (non-zero
     // exit): the PNGs of the frame are written first, to look at
-    roi.check_within(frame.width, frame.height).with_context(|| {
-        format!(
-            "the region of interest \
+    roi.check_within(frame.width, frame.height)
+        .with_context(|| {
+            format!(
+                "the region of interest \
              {}×{} px at ({}, {}) does not fit the {}×{} frame",
-            roi.width, roi.height, roi.x0, roi.y0, frame.width, frame.height
-        )
-    })?;
+                roi.width, roi.height, roi.x0, roi.y0, frame.width, frame.height
+            )
+        })?;
     let truth = frame.instrument.crop(roi)?;
     if truth.count() == 0 {
         bail!(

@@ -1,5 +1,6 @@
 //! Segmentation time. `cargo bench -p kflex-estimate --bench segment`
-//! Goals (issue 3): whole 640×480 frame ≤ 1 ms median, 1920×1080 ≤ 5 ms.
+//! Goals: the working region of interest ≤ 0.2 ms (camera v2); whole
+//! 640×480 frame ≤ 1 ms median, 1920×1080 ≤ 5 ms (issue 3).
 
 use std::hint::black_box;
 
@@ -12,6 +13,25 @@ use kflex_model::{FrameParams, SceneRenderer};
 
 fn bench(c: &mut Criterion) {
     let shape = Instrument::kflex().shape(30.0, 10.0).expect("shape");
+    {
+        let camera = Camera::default();
+        let f = SceneRenderer::new()
+            .render(&camera, &shape, &FrameParams::default())
+            .expect("frame");
+        let roi = Roi::working(&camera).expect("working region");
+        let mut segmenter = Segmenter::new(SegmentParams::default()).expect("params");
+        c.bench_function("segment_working_roi", |b| {
+            b.iter(|| {
+                black_box(
+                    segmenter
+                        .segment(&f.rgb, f.width, f.height, roi)
+                        .expect("segment")
+                        .small
+                        .count(),
+                )
+            })
+        });
+    }
     for (name, intrinsics) in [
         ("segment_640x480", Intrinsics::default()),
         ("segment_1920x1080", Intrinsics::full_hd()),

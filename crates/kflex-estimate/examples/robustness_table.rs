@@ -27,7 +27,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         bench.roi.y0
     );
     println!();
-    println!("| condition | no instrument | ROI IoU min | ROI IoU median | distal IoU min | distal IoU median |");
+    println!(
+        "| condition | no instrument | ROI IoU min | ROI IoU median | distal IoU min | distal IoU median |"
+    );
     println!("|---|---|---|---|---|---|");
     let fmt = |v: Option<(f64, f64)>| match v {
         Some((min, median)) => (format!("{min:.3}"), format!("{median:.3}")),

@@ -83,7 +83,11 @@ fn taped_part_is_lost_and_the_rest_found() {
         // bright regions, the tissue estimate lands on it and the tissue is
         // taken for instrument: IoU 0.286 (the fixed thresholds gave ≥ 0.85).
         // Asserted at what is reached, not at the goal.
-        let goal = if (fraction, position) == (0.4, 1.0) { 0.25 } else { 0.85 };
+        let goal = if (fraction, position) == (0.4, 1.0) {
+            0.25
+        } else {
+            0.85
+        };
         assert!(iou >= goal, "IoU against the visible part {iou}");
         assert!(
             (fraction, position) == (0.4, 1.0) || on_tape * 50 < tape.count().max(1),
@@ -421,8 +425,14 @@ fn random_4k_tiles_are_found_exactly() {
                 truth[y * w + x] = u8::from(metal);
             }
         }
-        let seg = segment(&rgb, w as u32, h as u32, WHOLE_4K, &SegmentParams::default())
-            .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        let seg = segment(
+            &rgb,
+            w as u32,
+            h as u32,
+            WHOLE_4K,
+            &SegmentParams::default(),
+        )
+        .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         let truth = Mask::from_raw(w as u32, h as u32, truth).unwrap();
         let wrong = seg
             .full
@@ -431,6 +441,9 @@ fn random_4k_tiles_are_found_exactly() {
             .zip(truth.data())
             .filter(|(a, b)| a != b)
             .count();
-        assert_eq!(wrong, 0, "seed {seed}: {wrong} pixels differ from the tiles");
+        assert_eq!(
+            wrong, 0,
+            "seed {seed}: {wrong} pixels differ from the tiles"
+        );
     }
 }

@@ -130,7 +130,12 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     let mut far = Histogram::new();
     for (r, &c) in regions.iter().zip(region_class.iter()) {
         if c == BRIGHT {
-            far.add(dist2(chroma(r.mean), p.metal_chroma).sqrt(), 0.0, 2.0, f64::from(r.count));
+            far.add(
+                dist2(chroma(r.mean), p.metal_chroma).sqrt(),
+                0.0,
+                2.0,
+                f64::from(r.count),
+            );
         }
     }
     let (near, farthest) = (far.quantile(0.5, 0.0, 2.0), far.quantile(0.8, 0.0, 2.0));
@@ -167,7 +172,10 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
             let ch = chroma(r.mean);
             let w = f64::from(r.count);
             if dist2(ch, metal) < dist2(ch, tissue) {
-                sum_m = [sum_m[0] + w * f64::from(ch[0]), sum_m[1] + w * f64::from(ch[1])];
+                sum_m = [
+                    sum_m[0] + w * f64::from(ch[0]),
+                    sum_m[1] + w * f64::from(ch[1]),
+                ];
                 n_m += w;
             } else {
                 hx.add(ch[0], -1.0, 1.0, w);
@@ -184,10 +192,12 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     }
     instrument.clear();
     instrument.extend(regions.iter().zip(region_class.iter()).map(|(r, &c)| {
-        u8::from(c == BRIGHT && {
-            let ch = chroma(r.mean);
-            dist2(ch, metal) < dist2(ch, tissue)
-        })
+        u8::from(
+            c == BRIGHT && {
+                let ch = chroma(r.mean);
+                dist2(ch, metal) < dist2(ch, tissue)
+            },
+        )
     }));
     // 5: clipped regions take their neighbours' class, by shared cell edges
     if region_class.contains(&CLIPPED) {

@@ -10,8 +10,8 @@ use kflex_model::{Bounds, Mask, Roi};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{EstimateError, Result};
-use pyramid::{Level, Region2d, pyramid};
 use classify::classify;
+use pyramid::{Level, Region2d, pyramid};
 use regions::{Region, drop_small_components, merge, split};
 use resample::resample_cells;
 

@@ -40,6 +40,13 @@ pub(super) fn split(s: &mut Scratch, depth: usize, rw: usize, rh: usize, p: Segm
     // a region per cell, and a depth-first stack of 3 blocks a level
     s.regions.clear();
     s.regions.reserve(cols * rows);
+    // and the threshold's per-region buffers, which hold one entry a region
+    for buffer in [&mut s.region_class, &mut s.instrument] {
+        buffer.clear();
+        buffer.reserve(cols * rows);
+    }
+    s.votes.clear();
+    s.votes.reserve(cols * rows);
     s.stack.clear();
     s.stack.reserve(3 * depth + 1);
     s.stack.push((depth - 1, 0, 0));

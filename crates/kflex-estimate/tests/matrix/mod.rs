@@ -206,7 +206,7 @@ impl Bench {
             .render(&self.camera, &shape, &params)
             .expect("frame");
         let mut distal_shape: InstrumentShape = shape.clone();
-        distal_shape.capsules.retain(|c| c.part != Part::Shaft);
+        distal_shape.bodies.retain(|c| c.part != Part::Shaft);
         let (w, h) = (frame.width, frame.height);
         let mut distal = Mask::new(w, h).expect("mask");
         self.raster

@@ -17,13 +17,13 @@ const TAPE: [f32; 3] = [0.55, 0.05, 0.06];
 /// Reflectance of steel at normal incidence (Schlick's `F₀`).
 const STEEL_F0: f64 = 0.55;
 /// Distance at which the endoscope's light gives the nominal exposure, mm;
-/// the irradiance falls as its inverse square (capped at 1.6 up close).
+/// the irradiance falls as its inverse square (capped at 2.5 up close).
 pub(super) const LIGHT_MM: f64 = 30.0;
 
-/// The light's falloff at distance `t_mm` from the camera: `(30/t)²`, at most 1.6.
+/// The light's falloff at distance `t_mm` from the camera: `(30/t)²`, at most 2.5.
 #[inline]
 pub(super) fn falloff(t_mm: f64) -> f64 {
-    (LIGHT_MM / t_mm.max(1.0)).powi(2).min(1.6)
+    (LIGHT_MM / t_mm.max(1.0)).powi(2).min(2.5)
 }
 
 /// What the steel reflects: the tissue in front of the camera (the
@@ -89,10 +89,12 @@ pub(super) fn surface_colour(
         1.0
     };
     let fresnel = STEEL_F0 + (1.0 - STEEL_F0) * (1.0 - cos).powi(5);
-    let diffuse = (0.18 + 0.40 * cos) * light * shadow;
+    // satin steel scatters some light back even at grazing incidence
+    let diffuse = (0.28 + 0.42 * cos) * light * shadow;
     let mirror = d - n * (2.0 * d.dot(&n));
     let seen = env.along(&mirror);
-    let reflected = 0.5 * fresnel * shadow * gloss;
+    // the tissue it reflects is lit about as the steel is (no brighter than nominal)
+    let reflected = 0.22 * fresnel * shadow * gloss * light.min(1.0);
     let highlight = (0.9 * cos.powi(80) + 0.2 * cos.powi(10)) * light * shadow * gloss;
     let colour = std::array::from_fn(|k| {
         (f64::from(METAL[k]) * diffuse + f64::from(seen[k]) * reflected + highlight) as f32
