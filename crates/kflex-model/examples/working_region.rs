@@ -4,7 +4,8 @@
 //! bend and gripper make.
 //!
 //! `cargo run --release -p kflex-model --example working_region [θ0 θ1 d0 d1]`
-//! (default: `Roi::WORKING_POSES`).
+//! (default: `Roi::WORKING_POSES`). With `SHOW` set in the environment it
+//! also prints the bends whose silhouette equals the previous degree's.
 
 use kflex_model::{Camera, Instrument, Mask, Part, PoseRange, Rasterizer, Roi};
 
@@ -57,6 +58,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             raster.silhouette(&small, &shape, &mut a)?;
             if j > 0 && a == b {
                 identical += 1;
+                if std::env::var_os("SHOW").is_some() {
+                    eprint!("{theta} ");
+                }
             }
             std::mem::swap(&mut a, &mut b);
             shape.bodies.retain(|c| c.part != Part::Shaft);
