@@ -111,7 +111,8 @@ impl Sensor<'_> {
     }
 }
 
-/// Separable Gaussian blur of an RGB f32 image in place.
+/// Separable Gaussian blur of an RGB f32 image in place (edges clamped):
+/// a horizontal pass into a scratch image, a vertical pass back.
 pub(super) fn gaussian_blur(img: &mut [f32], w: usize, h: usize, sigma: f64) {
     let radius = (3.0 * sigma).ceil() as isize;
     let kernel: Vec<f32> = (-radius..=radius)
@@ -119,32 +120,39 @@ pub(super) fn gaussian_blur(img: &mut [f32], w: usize, h: usize, sigma: f64) {
         .collect();
     let norm: f32 = kernel.iter().sum();
     let mut tmp = vec![0.0f32; img.len()];
-    for pass in 0..2 {
-        let (src, dst): (&[f32], &mut [f32]) = if pass == 0 {
-            (img, &mut tmp)
-        } else {
-            (&tmp, img)
-        };
-        let src = src.to_vec();
-        for y in 0..h as isize {
-            for x in 0..w as isize {
-                let mut acc = [0.0f32; 3];
-                for (j, kv) in kernel.iter().enumerate() {
-                    let o = j as isize - radius;
-                    let (sx, sy) = if pass == 0 {
-                        ((x + o).clamp(0, w as isize - 1), y)
-                    } else {
-                        (x, (y + o).clamp(0, h as isize - 1))
-                    };
-                    let i = 3 * (sy as usize * w + sx as usize);
-                    for ch in 0..3 {
-                        acc[ch] += kv * src[i + ch];
-                    }
-                }
-                let i = 3 * (y as usize * w + x as usize);
+    blur_pass(img, &mut tmp, w, h, &kernel, norm, true);
+    blur_pass(&tmp, img, w, h, &kernel, norm, false);
+}
+
+/// One pass of [`gaussian_blur`] from `src` into `dst`, along rows or columns.
+fn blur_pass(
+    src: &[f32],
+    dst: &mut [f32],
+    w: usize,
+    h: usize,
+    kernel: &[f32],
+    norm: f32,
+    along_rows: bool,
+) {
+    let radius = (kernel.len() / 2) as isize;
+    for y in 0..h as isize {
+        for x in 0..w as isize {
+            let mut acc = [0.0f32; 3];
+            for (j, kv) in kernel.iter().enumerate() {
+                let o = j as isize - radius;
+                let (sx, sy) = if along_rows {
+                    ((x + o).clamp(0, w as isize - 1), y)
+                } else {
+                    (x, (y + o).clamp(0, h as isize - 1))
+                };
+                let i = 3 * (sy as usize * w + sx as usize);
                 for ch in 0..3 {
-                    dst[i + ch] = acc[ch] / norm;
+                    acc[ch] += kv * src[i + ch];
                 }
+            }
+            let i = 3 * (y as usize * w + x as usize);
+            for ch in 0..3 {
+                dst[i + ch] = acc[ch] / norm;
             }
         }
     }
@@ -153,6 +161,33 @@ pub(super) fn gaussian_blur(img: &mut [f32], w: usize, h: usize, sigma: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Blurring an impulse spreads it into a symmetric, normalised Gaussian
+    /// whose spread is σ along both axes.
+    #[test]
+    fn blur_spreads_an_impulse_into_a_gaussian() {
+        let (w, h, sigma) = (41usize, 31usize, 2.0);
+        let mut img = vec![0.0f32; 3 * w * h];
+        let centre = 3 * (15 * w + 20);
+        img[centre + 1] = 1.0;
+        gaussian_blur(&mut img, w, h, sigma);
+        let green = |x: usize, y: usize| f64::from(img[3 * (y * w + x) + 1]);
+        let total: f64 = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| green(x, y))
+            .sum();
+        assert!((total - 1.0).abs() < 1e-5, "{total}");
+        assert!((green(17, 15) - green(23, 15)).abs() < 1e-7);
+        assert!((green(20, 12) - green(20, 18)).abs() < 1e-7);
+        assert!(
+            img[centre].abs() < 1e-9 && img[centre + 2].abs() < 1e-9,
+            "channels stay apart"
+        );
+        let var_x: f64 = (0..w)
+            .map(|x| (x as f64 - 20.0).powi(2) * (0..h).map(|y| green(x, y)).sum::<f64>())
+            .sum();
+        assert!((var_x.sqrt() - sigma).abs() < 0.05, "{}", var_x.sqrt());
+    }
 
     /// The sensor reads a value the same whether alone, in a span or in a whole image.
     #[test]
