@@ -28,8 +28,98 @@ const FINE: u32 = 8;
 #[derive(Debug, Default, Clone)]
 pub struct Rasterizer {
     scene: Scene,
+    optics: Optics,
     coarse: Vec<u16>,
     fine: Vec<u16>,
+}
+
+/// What depends on the camera only, kept while it stays: each pixel's unit
+/// ray over a window, and each tile's cone (built as tiles are first met).
+#[derive(Debug, Clone)]
+pub(crate) struct Optics {
+    camera: Option<Camera>,
+    window: Roi,
+    rays: Vec<[f32; 3]>,
+    /// Cones of the coarse and the fine tiles, row-major over the full image.
+    coarse: Vec<Option<Cone>>,
+    fine: Vec<Option<Cone>>,
+}
+
+/// No window: the tables hold nothing yet.
+const NO_WINDOW: Roi = Roi {
+    x0: 0,
+    y0: 0,
+    width: 0,
+    height: 0,
+};
+
+impl Default for Optics {
+    fn default() -> Self {
+        Self {
+            camera: None,
+            window: NO_WINDOW,
+            rays: Vec::new(),
+            coarse: Vec::new(),
+            fine: Vec::new(),
+        }
+    }
+}
+
+impl Optics {
+    /// Makes the tables hold `camera`'s rays over `window`.
+    fn cover(&mut self, camera: &Camera, window: Roi) {
+        let k = &camera.intrinsics;
+        if self.camera != Some(*camera) {
+            self.camera = Some(*camera);
+            self.window = NO_WINDOW;
+            self.rays.clear();
+            let tiles = |side: u32| (k.width.div_ceil(side) * k.height.div_ceil(side)) as usize;
+            self.coarse.clear();
+            self.coarse.resize(tiles(COARSE), None);
+            self.fine.clear();
+            self.fine.resize(tiles(FINE), None);
+        }
+        let held = self.window;
+        let inside = held.x0 <= window.x0
+            && held.y0 <= window.y0
+            && held.x0 + held.width >= window.x0 + window.width
+            && held.y0 + held.height >= window.y0 + window.height;
+        if !inside || self.rays.is_empty() {
+            self.window = window;
+            self.rays.clear();
+            for y in window.y0..window.y0 + window.height {
+                for x in window.x0..window.x0 + window.width {
+                    let d = unit_ray(camera, f64::from(x) + 0.5, f64::from(y) + 0.5);
+                    self.rays.push([d.x as f32, d.y as f32, d.z as f32]);
+                }
+            }
+        }
+    }
+
+    /// The unit ray through the centre of pixel `(x, y)`, which the window held covers.
+    #[inline]
+    pub(crate) fn ray(&self, x: u32, y: u32) -> Vector3<f64> {
+        let w = &self.window;
+        let r = self.rays[((y - w.y0) * w.width + (x - w.x0)) as usize];
+        Vector3::new(f64::from(r[0]), f64::from(r[1]), f64::from(r[2]))
+    }
+
+    /// The cone of the tile of side `side` at `(tx, ty)` (tile coordinates).
+    fn cone(&mut self, camera: &Camera, side: u32, tx: u32, ty: u32) -> Cone {
+        let cols = camera.intrinsics.width.div_ceil(side);
+        let slots = if side == COARSE {
+            &mut self.coarse
+        } else {
+            &mut self.fine
+        };
+        let slot = &mut slots[(ty * cols + tx) as usize];
+        *slot.get_or_insert_with(|| {
+            Cone::of(
+                camera,
+                [tx * side, ty * side, (tx + 1) * side, (ty + 1) * side],
+            )
+        })
+    }
 }
 
 /// The shape's bodies in the camera frame.
@@ -113,16 +203,21 @@ impl Rasterizer {
         }
         self.prepare(camera, shape);
         let w = window.width as usize;
-        self.tiles(camera, window, |scene, [x0, y0, x1, y1], candidates| {
-            for y in y0..y1 {
-                let row = (y - window.y0) as usize * w;
-                for x in x0..x1 {
-                    if scene.any_hit(camera, candidates, f64::from(x) + 0.5, f64::from(y) + 0.5) {
-                        mask.set_index(row + (x - window.x0) as usize);
+        self.tiles(
+            camera,
+            window,
+            |scene, optics, [x0, y0, x1, y1], candidates| {
+                for y in y0..y1 {
+                    let row = (y - window.y0) as usize * w;
+                    for x in x0..x1 {
+                        let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+                        if scene.any_hit(candidates, u, v, || optics.ray(x, y)) {
+                            mask.set_index(row + (x - window.x0) as usize);
+                        }
                     }
                 }
-            }
-        });
+            },
+        );
         Ok(())
     }
 
@@ -152,8 +247,9 @@ impl Rasterizer {
         &mut self,
         camera: &Camera,
         window: Roi,
-        mut f: impl FnMut(&Scene, [u32; 4], &[u16]),
+        mut f: impl FnMut(&Scene, &Optics, [u32; 4], &[u16]),
     ) {
+        self.optics.cover(camera, window);
         let (wx0, wy0) = (window.x0, window.y0);
         let (wx1, wy1) = (wx0 + window.width, wy0 + window.height);
         let all = self.scene.bodies.len().min(usize::from(u16::MAX)) as u16;
@@ -161,9 +257,8 @@ impl Rasterizer {
         while cy < wy1 {
             let mut cx = wx0 / COARSE * COARSE;
             while cx < wx1 {
-                let rect = [cx, cy, cx + COARSE, cy + COARSE];
-                let cone = Cone::of(camera, rect);
-                let rect = rect.map(f64::from);
+                let rect = [cx, cy, cx + COARSE, cy + COARSE].map(f64::from);
+                let cone = self.optics.cone(camera, COARSE, cx / COARSE, cy / COARSE);
                 self.coarse.clear();
                 self.coarse.extend((0..all).filter(|&i| {
                     let body = &self.scene.bodies[usize::from(i)];
@@ -183,14 +278,13 @@ impl Rasterizer {
                     while fy < ey {
                         let mut fx = cx.max(wx0) / FINE * FINE;
                         while fx < ex {
-                            let cone = Cone::of(camera, [fx, fy, fx + FINE, fy + FINE]);
+                            let cone = self.optics.cone(camera, FINE, fx / FINE, fy / FINE);
+                            let rect = [fx, fy, fx + FINE, fy + FINE].map(f64::from);
                             self.fine.clear();
-                            self.fine.extend(
-                                self.coarse
-                                    .iter()
-                                    .copied()
-                                    .filter(|&i| self.scene.bodies[usize::from(i)].may_meet(&cone)),
-                            );
+                            self.fine.extend(self.coarse.iter().copied().filter(|&i| {
+                                let body = &self.scene.bodies[usize::from(i)];
+                                body.box_meets(rect) && body.may_meet(&cone)
+                            }));
                             if !self.fine.is_empty() {
                                 let tile = [
                                     fx.max(wx0),
@@ -198,7 +292,7 @@ impl Rasterizer {
                                     (fx + FINE).min(ex),
                                     (fy + FINE).min(ey),
                                 ];
-                                f(&self.scene, tile, &self.fine);
+                                f(&self.scene, &self.optics, tile, &self.fine);
                             }
                             fx += FINE;
                         }
@@ -232,7 +326,8 @@ fn closest_to_origin(a: Vector3<f64>, b: Vector3<f64>) -> Vector3<f64> {
 }
 
 /// The cone of rays through a pixel box: its axis and the sine of its half-angle.
-struct Cone {
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Cone {
     axis: Vector3<f64>,
     sin_half: f64,
 }
@@ -447,6 +542,41 @@ impl CameraBody {
         best
     }
 
+    /// Whether the ray from the origin along unit `d` meets the body at all
+    /// ([`CameraBody::hit`] without looking for the nearest surface).
+    #[inline]
+    fn meets(&self, d: &Vector3<f64>) -> bool {
+        if self.len > 1e-9 {
+            let da = d.dot(&self.axis);
+            let qa = 1.0 - da * da;
+            let qb = 2.0 * d.dot(&self.across);
+            let disc = qb * qb - 4.0 * qa * self.across_c;
+            if qa > 1e-18 && disc >= 0.0 {
+                let t = (-qb - disc.sqrt()) / (2.0 * qa);
+                let along = t * da - self.a_axis;
+                if t > 0.0 && (0.0..=self.len).contains(&along) {
+                    return true;
+                }
+            }
+            if self.ends == Ends::Flat && da.abs() > 1e-12 {
+                for c in [&self.a, &self.b] {
+                    let t = c.dot(&self.axis) / da;
+                    if t > 0.0 && (d * t - c).norm_squared() <= self.r * self.r {
+                        return true;
+                    }
+                }
+            }
+        }
+        self.ends == Ends::Round
+            && [(&self.a, self.spheres[0]), (&self.b, self.spheres[1])]
+                .iter()
+                .any(|&(c, k)| {
+                    let cd = c.dot(d);
+                    let disc = cd * cd - k;
+                    disc >= 0.0 && cd - disc.sqrt() > 0.0
+                })
+    }
+
     /// Outward unit normal where the ray along `d` meets `surface` at `t`,
     /// axial parameter `u`.
     fn normal(&self, d: &Vector3<f64>, t: f64, u: f64, surface: Surface) -> Vector3<f64> {
@@ -459,17 +589,21 @@ impl CameraBody {
 }
 
 impl Scene {
-    /// Whether the ray through pixel position `(u, v)` meets any of the
-    /// bodies `candidates`.
+    /// Whether the ray through pixel position `(u, v)` (its unit direction
+    /// from `ray`, asked only if a body's box holds the pixel) meets any of
+    /// the bodies `candidates`.
     #[inline]
-    pub(crate) fn any_hit(&self, camera: &Camera, candidates: &[u16], u: f64, v: f64) -> bool {
+    pub(crate) fn any_hit(
+        &self,
+        candidates: &[u16],
+        u: f64,
+        v: f64,
+        ray: impl Fn() -> Vector3<f64>,
+    ) -> bool {
         let mut d = None;
         candidates.iter().any(|&i| {
             let body = &self.bodies[usize::from(i)];
-            body.box_holds(u, v)
-                && body
-                    .hit(d.get_or_insert_with(|| unit_ray(camera, u, v)))
-                    .is_some()
+            body.box_holds(u, v) && body.meets(d.get_or_insert_with(&ray))
         })
     }
 
@@ -488,7 +622,7 @@ impl Scene {
 
     /// The first body among `candidates` the ray along unit `d`, through
     /// pixel position `(u, v)`, meets.
-    fn first_hit_along(
+    pub(crate) fn first_hit_along(
         &self,
         candidates: &[u16],
         pu: f64,

@@ -13,7 +13,7 @@ use crate::error::Result;
 use crate::instrument::InstrumentShape;
 use crate::mask::Mask;
 use crate::range::Bounds;
-use crate::raster::{Rasterizer, SurfaceHit, unit_ray};
+use crate::raster::{Rasterizer, SurfaceHit};
 use crate::roi::Roi;
 pub use background::Background;
 use sensor::{Sensor, gaussian_blur, normal_table};
@@ -327,18 +327,24 @@ impl SceneRenderer {
         inside.clear();
         inside.resize(work.area() as usize, 0);
         let ww = work.width as usize;
-        raster.tiles(camera, work, |scene, [x0, y0, x1, y1], candidates| {
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
-                    if let (Some(hit), _) = scene.first_hit(camera, candidates, u, v) {
-                        hits.push(hit);
-                        inside[(y - work.y0) as usize * ww + (x - work.x0) as usize] =
-                            hits.len() as u32;
+        raster.tiles(
+            camera,
+            work,
+            |scene, optics, [x0, y0, x1, y1], candidates| {
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+                        if let Some(hit) =
+                            scene.first_hit_along(candidates, u, v, &optics.ray(x, y))
+                        {
+                            hits.push(hit);
+                            inside[(y - work.y0) as usize * ww + (x - work.x0) as usize] =
+                                hits.len() as u32;
+                        }
                     }
                 }
-            }
-        });
+            },
+        );
     }
 
     /// The tape's arc-length band: `o.fraction` of the instrument's pixels
@@ -382,16 +388,22 @@ impl SceneRenderer {
             }
             return tape_band(arcs, o);
         }
-        raster.tiles(camera, region, |scene, [x0, y0, x1, y1], candidates| {
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
-                    if let (Some(hit), _) = scene.first_hit(camera, candidates, u, v) {
-                        arcs.push(hit.arc_mm as f32);
+        raster.tiles(
+            camera,
+            region,
+            |scene, optics, [x0, y0, x1, y1], candidates| {
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+                        if let Some(hit) =
+                            scene.first_hit_along(candidates, u, v, &optics.ray(x, y))
+                        {
+                            arcs.push(hit.arc_mm as f32);
+                        }
                     }
                 }
-            }
-        });
+            },
+        );
         tape_band(arcs, o)
     }
 
@@ -430,45 +442,49 @@ impl SceneRenderer {
         let centre = |x: usize, y: usize| -> Option<u32> {
             inside[(y - work.y0 as usize) * work_w + (x - work.x0 as usize)].checked_sub(1)
         };
-        raster.tiles(camera, region, |scene, [x0, y0, x1, y1], candidates| {
-            for y in y0 as usize..y1 as usize {
-                for x in x0 as usize..x1 as usize {
-                    let here = centre(x, y);
-                    // an edge: a neighbour's centre ray disagrees (within the image)
-                    let edge = [
-                        (x.wrapping_sub(1), y),
-                        (x + 1, y),
-                        (x, y.wrapping_sub(1)),
-                        (x, y + 1),
-                    ]
-                    .iter()
-                    .any(|&(nx, ny)| {
-                        nx < w && ny < h && centre(nx, ny).is_some() != here.is_some()
-                    });
-                    let o = 3 * ((y - region.y0 as usize) * rw + (x - region.x0 as usize));
-                    if edge {
-                        let bg = [img[o], img[o + 1], img[o + 2]];
-                        let mut sum = [0.0f32; 3];
-                        for (dx, dy) in EDGE_SAMPLES {
-                            let (u, v) = (x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
-                            let c = match scene.first_hit(camera, candidates, u, v) {
-                                (Some(hit), d) => {
-                                    surface_colour(&scene.bodies, &hit, &d, band, &env).0
-                                }
-                                (None, _) => bg,
-                            };
-                            (0..3).for_each(|ch| sum[ch] += 0.25 * c[ch]);
+        raster.tiles(
+            camera,
+            region,
+            |scene, optics, [x0, y0, x1, y1], candidates| {
+                for y in y0 as usize..y1 as usize {
+                    for x in x0 as usize..x1 as usize {
+                        let here = centre(x, y);
+                        // an edge: a neighbour's centre ray disagrees (within the image)
+                        let edge = [
+                            (x.wrapping_sub(1), y),
+                            (x + 1, y),
+                            (x, y.wrapping_sub(1)),
+                            (x, y + 1),
+                        ]
+                        .iter()
+                        .any(|&(nx, ny)| {
+                            nx < w && ny < h && centre(nx, ny).is_some() != here.is_some()
+                        });
+                        let o = 3 * ((y - region.y0 as usize) * rw + (x - region.x0 as usize));
+                        if edge {
+                            let bg = [img[o], img[o + 1], img[o + 2]];
+                            let mut sum = [0.0f32; 3];
+                            for (dx, dy) in EDGE_SAMPLES {
+                                let (u, v) = (x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
+                                let c = match scene.first_hit(camera, candidates, u, v) {
+                                    (Some(hit), d) => {
+                                        surface_colour(&scene.bodies, &hit, &d, band, &env).0
+                                    }
+                                    (None, _) => bg,
+                                };
+                                (0..3).for_each(|ch| sum[ch] += 0.25 * c[ch]);
+                            }
+                            img[o..o + 3].copy_from_slice(&sum);
+                        } else if let Some(i) = here {
+                            let hit = &hits[i as usize];
+                            let d = optics.ray(x as u32, y as u32);
+                            let c = surface_colour(&scene.bodies, hit, &d, band, &env).0;
+                            img[o..o + 3].copy_from_slice(&c);
                         }
-                        img[o..o + 3].copy_from_slice(&sum);
-                    } else if let Some(i) = here {
-                        let hit = &hits[i as usize];
-                        let d = unit_ray(camera, x as f64 + 0.5, y as f64 + 0.5);
-                        let c = surface_colour(&scene.bodies, hit, &d, band, &env).0;
-                        img[o..o + 3].copy_from_slice(&c);
                     }
                 }
-            }
-        });
+            },
+        );
         img
     }
 }
