@@ -137,6 +137,8 @@ pub struct SceneRenderer {
     hits: Vec<SurfaceHit>,
     inside: Vec<u32>,
     arcs: Vec<f32>,
+    /// The last camera's vignetting, per pixel of the full frame.
+    vignetting: Option<(Camera, Vec<f32>)>,
     /// The last camera's working region (where the tape's share is measured).
     working: Option<(Camera, Option<Roi>)>,
     /// Standard-normal samples; each frame reads them in a seeded pseudo-random order.
@@ -257,13 +259,24 @@ impl SceneRenderer {
         let mut img = self.shade(camera, shaded_region, work, band);
         // the sensor: vignetting first (the lens), then blur, noise and 8 bits
         let (sw, sh) = (shaded_region.width as usize, shaded_region.height as usize);
-        for (j, px) in img.chunks_exact_mut(3).enumerate() {
-            let (x, y) = (
-                shaded_region.x0 as usize + j % sw,
-                shaded_region.y0 as usize + j / sw,
-            );
-            let v = camera.illumination(x as f64 + 0.5, y as f64 + 0.5) as f32;
-            px.iter_mut().for_each(|c| *c *= v);
+        // the lens's vignetting: separable in neither axis, so a table kept per camera
+        if self.vignetting.as_ref().map(|v| v.0) != Some(*camera) {
+            let mut table = Vec::with_capacity((k.width * k.height) as usize);
+            for y in 0..k.height {
+                for x in 0..k.width {
+                    table.push(camera.illumination(f64::from(x) + 0.5, f64::from(y) + 0.5) as f32);
+                }
+            }
+            self.vignetting = Some((*camera, table));
+        }
+        if let Some((_, table)) = &self.vignetting {
+            for (row, line) in img.chunks_exact_mut(3 * sw).enumerate() {
+                let start =
+                    (shaded_region.y0 as usize + row) * w as usize + shaded_region.x0 as usize;
+                for (px, &v) in line.chunks_exact_mut(3).zip(&table[start..start + sw]) {
+                    px.iter_mut().for_each(|c| *c *= v);
+                }
+            }
         }
         if params.blur_px > 0.0 {
             gaussian_blur(&mut img, sw, sh, params.blur_px);

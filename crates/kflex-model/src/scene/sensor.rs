@@ -74,15 +74,31 @@ impl Sensor<'_> {
             }
             return;
         }
-        let mut group = usize::MAX;
-        let mut bits = 0;
-        for (j, (o, &v)) in out.iter_mut().zip(values).enumerate() {
-            let i = first + j;
-            if i / 4 != group {
-                group = i / 4;
-                bits = self.bits(group);
+        let n = out.len().min(values.len());
+        // up to the first whole group of four, then whole groups, then the rest
+        let head = ((4 - first % 4) % 4).min(n);
+        let one = |j: usize| {
+            self.quantise(
+                values[j],
+                self.noise(self.bits((first + j) / 4), (first + j) % 4),
+            )
+        };
+        for j in 0..head {
+            out[j] = one(j);
+        }
+        let whole = (n - head) / 4;
+        for (g, (o, v)) in out[head..head + 4 * whole]
+            .chunks_exact_mut(4)
+            .zip(values[head..head + 4 * whole].chunks_exact(4))
+            .enumerate()
+        {
+            let bits = self.bits((first + head) / 4 + g);
+            for lane in 0..4 {
+                o[lane] = self.quantise(v[lane], self.noise(bits, lane));
             }
-            *o = self.quantise(v, self.noise(bits, i % 4));
+        }
+        for j in head + 4 * whole..n {
+            out[j] = one(j);
         }
     }
 
