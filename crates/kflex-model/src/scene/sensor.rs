@@ -83,8 +83,8 @@ impl Sensor<'_> {
                 self.noise(self.bits((first + j) / 4), (first + j) % 4),
             )
         };
-        for j in 0..head {
-            out[j] = one(j);
+        for (j, o) in out.iter_mut().enumerate().take(head) {
+            *o = one(j);
         }
         let whole = (n - head) / 4;
         for (g, (o, v)) in out[head..head + 4 * whole]
@@ -97,8 +97,8 @@ impl Sensor<'_> {
                 o[lane] = self.quantise(v[lane], self.noise(bits, lane));
             }
         }
-        for j in head + 4 * whole..n {
-            out[j] = one(j);
+        for (j, o) in out.iter_mut().enumerate().take(n).skip(head + 4 * whole) {
+            *o = one(j);
         }
     }
 
