@@ -121,7 +121,7 @@ const JAW_TIP: f64 = 0.55;
 
 /// Builds shapes from (θ, d), checking both against the workspace.
 ///
-/// One definition serves the rasterizer and the mechanics: the bending joint's
+/// One definition serves the ray caster and the mechanics: the bending joint's
 /// links are [`JointParams`]'s (`2n` links of `link_length_mm`, radius
 /// `link_radius_mm`, equal contact angles `θ/2n` as in Eq. 1), the tool is
 /// [`JointParams::tool_length_mm`] long. The shape is a set of [`Body`]s in the

@@ -6,8 +6,10 @@
 //! transmission (each tendon a chain of Bouc–Wen friction elements, whose
 //! friction grows with the sheath's bend by the capstan law), the
 //! joint's mechanics (analytic, or a rapier3d multibody chain), command
-//! trajectories, and the endoscope camera (instrument geometry, pinhole
-//! camera, silhouette rasterizer, shaded frames over clinical backgrounds).
+//! trajectories, and the endoscope camera (instrument geometry, a
+//! wide-angle lens, an exact ray caster for silhouettes, shaded frames over
+//! clinical backgrounds, and the as-built instrument and camera that keep a
+//! reality gap between the simulated robot and the nominal model).
 //! [`Plant`] puts the mechanics together; it is the ground truth of the
 //! testbed and is never read by the estimators.
 //!
