@@ -79,12 +79,7 @@ impl Optics {
             self.fine.clear();
             self.fine.resize(tiles(FINE), None);
         }
-        let held = self.window;
-        let inside = held.x0 <= window.x0
-            && held.y0 <= window.y0
-            && held.x0 + held.width >= window.x0 + window.width
-            && held.y0 + held.height >= window.y0 + window.height;
-        if !inside || self.rays.is_empty() {
+        if !self.window.holds(&window) || self.rays.is_empty() {
             self.window = window;
             self.rays.clear();
             for y in window.y0..window.y0 + window.height {
@@ -164,12 +159,7 @@ impl Rasterizer {
         mask: &mut Mask,
     ) -> Result<()> {
         let k = &camera.intrinsics;
-        let full = Roi {
-            x0: 0,
-            y0: 0,
-            width: k.width,
-            height: k.height,
-        };
+        let full = Roi::whole(k.width, k.height);
         self.silhouette_window(camera, shape, full, mask)
     }
 
@@ -303,6 +293,34 @@ impl Rasterizer {
             }
             cy += COARSE;
         }
+    }
+}
+
+impl Rasterizer {
+    /// Calls `f(x, y, hit)` for every pixel of `window` whose centre ray
+    /// meets the prepared shape, with where it meets it first.
+    pub(crate) fn centre_hits(
+        &mut self,
+        camera: &Camera,
+        window: Roi,
+        mut f: impl FnMut(u32, u32, SurfaceHit),
+    ) {
+        self.tiles(
+            camera,
+            window,
+            |scene, optics, [x0, y0, x1, y1], candidates| {
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+                        if let Some(hit) =
+                            scene.first_hit_along(candidates, u, v, &optics.ray(x, y))
+                        {
+                            f(x, y, hit);
+                        }
+                    }
+                }
+            },
+        );
     }
 }
 
@@ -504,23 +522,13 @@ impl CameraBody {
             }
         };
         if self.len > 1e-9 {
-            // side: |d t − a|² across the axis = r², nearer root
             let da = d.dot(&self.axis);
-            let qa = 1.0 - da * da;
-            let qb = 2.0 * d.dot(&self.across);
-            let disc = qb * qb - 4.0 * qa * self.across_c;
-            if qa > 1e-18 && disc >= 0.0 {
-                let t = (-qb - disc.sqrt()) / (2.0 * qa);
-                let along = t * da - self.a_axis;
-                if (0.0..=self.len).contains(&along) {
-                    keep(t, along / self.len, Surface::Side);
-                }
+            if let Some((t, u)) = self.side(d, da) {
+                keep(t, u, Surface::Side);
             }
-            if self.ends == Ends::Flat && da.abs() > 1e-12 {
-                // end discs: the planes through a and b across the axis
+            if self.ends == Ends::Flat {
                 for (c, u, s) in [(&self.a, 0.0, Surface::EndA), (&self.b, 1.0, Surface::EndB)] {
-                    let t = c.dot(&self.axis) / da;
-                    if (d * t - c).norm_squared() <= self.r * self.r {
+                    if let Some(t) = self.end_disc(d, da, c) {
                         keep(t, u, s);
                     }
                 }
@@ -542,29 +550,50 @@ impl CameraBody {
         best
     }
 
+    /// Where the ray along unit `d` (with `da = d · axis`) meets the side:
+    /// `|d t − a|² across the axis = r²`, the nearer root, if it lies
+    /// between the ends; its distance and axial parameter in `[0, 1]`.
+    #[inline]
+    fn side(&self, d: &Vector3<f64>, da: f64) -> Option<(f64, f64)> {
+        let qa = 1.0 - da * da;
+        let qb = 2.0 * d.dot(&self.across);
+        let disc = qb * qb - 4.0 * qa * self.across_c;
+        if qa <= 1e-18 || disc < 0.0 {
+            return None;
+        }
+        let t = (-qb - disc.sqrt()) / (2.0 * qa);
+        let along = t * da - self.a_axis;
+        (0.0..=self.len)
+            .contains(&along)
+            .then(|| (t, along / self.len))
+    }
+
+    /// Where the ray along unit `d` meets the flat end disc centred on `c`
+    /// (the plane through `c` across the axis), if within the radius.
+    #[inline]
+    fn end_disc(&self, d: &Vector3<f64>, da: f64, c: &Vector3<f64>) -> Option<f64> {
+        if da.abs() <= 1e-12 {
+            return None;
+        }
+        let t = c.dot(&self.axis) / da;
+        ((d * t - c).norm_squared() <= self.r * self.r).then_some(t)
+    }
+
     /// Whether the ray from the origin along unit `d` meets the body at all
     /// ([`CameraBody::hit`] without looking for the nearest surface).
     #[inline]
     fn meets(&self, d: &Vector3<f64>) -> bool {
         if self.len > 1e-9 {
             let da = d.dot(&self.axis);
-            let qa = 1.0 - da * da;
-            let qb = 2.0 * d.dot(&self.across);
-            let disc = qb * qb - 4.0 * qa * self.across_c;
-            if qa > 1e-18 && disc >= 0.0 {
-                let t = (-qb - disc.sqrt()) / (2.0 * qa);
-                let along = t * da - self.a_axis;
-                if t > 0.0 && (0.0..=self.len).contains(&along) {
-                    return true;
-                }
+            if self.side(d, da).is_some_and(|(t, _)| t > 0.0) {
+                return true;
             }
-            if self.ends == Ends::Flat && da.abs() > 1e-12 {
-                for c in [&self.a, &self.b] {
-                    let t = c.dot(&self.axis) / da;
-                    if t > 0.0 && (d * t - c).norm_squared() <= self.r * self.r {
-                        return true;
-                    }
-                }
+            if self.ends == Ends::Flat
+                && [&self.a, &self.b]
+                    .iter()
+                    .any(|c| self.end_disc(d, da, c).is_some_and(|t| t > 0.0))
+            {
+                return true;
             }
         }
         self.ends == Ends::Round

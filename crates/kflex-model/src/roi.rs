@@ -23,6 +23,28 @@ pub struct Roi {
 }
 
 impl Roi {
+    /// The whole of a `width × height` image.
+    #[must_use]
+    pub const fn whole(width: u32, height: u32) -> Roi {
+        Roi {
+            x0: 0,
+            y0: 0,
+            width,
+            height,
+        }
+    }
+
+    /// Whether `inner` lies inside this region.
+    #[must_use]
+    pub fn holds(&self, inner: &Roi) -> bool {
+        self.x0 <= inner.x0
+            && self.y0 <= inner.y0
+            && u64::from(self.x0) + u64::from(self.width)
+                >= u64::from(inner.x0) + u64::from(inner.width)
+            && u64::from(self.y0) + u64::from(self.height)
+                >= u64::from(inner.y0) + u64::from(inner.height)
+    }
+
     /// Checks that the region is not empty and lies inside a `width × height` image.
     ///
     /// # Errors
@@ -81,6 +103,29 @@ mod tests {
             Err(ModelError::OutOfRange(e)) => e,
             other => panic!("{other:?}"),
         }
+    }
+
+    #[test]
+    fn a_region_holds_what_lies_inside_it() {
+        let whole = Roi::whole(640, 480);
+        assert!(whole.check_within(640, 480).is_ok());
+        let inner = Roi {
+            x0: 10,
+            y0: 20,
+            width: 630,
+            height: 460,
+        };
+        assert!(whole.holds(&inner) && whole.holds(&whole) && !inner.holds(&whole));
+        let past = Roi { width: 631, ..inner };
+        assert!(!whole.holds(&past));
+        // no overflow at the far end of u32
+        let far = Roi {
+            x0: u32::MAX - 1,
+            y0: 0,
+            width: 5,
+            height: 1,
+        };
+        assert!(!whole.holds(&far) && !far.holds(&whole));
     }
 
     #[test]

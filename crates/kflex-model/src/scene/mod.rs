@@ -208,12 +208,7 @@ impl SceneRenderer {
         params: &FrameParams,
     ) -> Result<Frame> {
         let k = &camera.intrinsics;
-        let full = Roi {
-            x0: 0,
-            y0: 0,
-            width: k.width,
-            height: k.height,
-        };
+        let full = Roi::whole(k.width, k.height);
         self.render_window(camera, shape, params, full)
     }
 
@@ -340,24 +335,10 @@ impl SceneRenderer {
         inside.clear();
         inside.resize(work.area() as usize, 0);
         let ww = work.width as usize;
-        raster.tiles(
-            camera,
-            work,
-            |scene, optics, [x0, y0, x1, y1], candidates| {
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
-                        if let Some(hit) =
-                            scene.first_hit_along(candidates, u, v, &optics.ray(x, y))
-                        {
-                            hits.push(hit);
-                            inside[(y - work.y0) as usize * ww + (x - work.x0) as usize] =
-                                hits.len() as u32;
-                        }
-                    }
-                }
-            },
-        );
+        raster.centre_hits(camera, work, |x, y, hit| {
+            hits.push(hit);
+            inside[(y - work.y0) as usize * ww + (x - work.x0) as usize] = hits.len() as u32;
+        });
     }
 
     /// The tape's arc-length band: `o.fraction` of the instrument's pixels
@@ -369,12 +350,10 @@ impl SceneRenderer {
         if self.working.as_ref().map(|w| w.0) != Some(*camera) {
             self.working = Some((*camera, Roi::working(camera).ok()));
         }
-        let region = self.working.and_then(|w| w.1).unwrap_or(Roi {
-            x0: 0,
-            y0: 0,
-            width: k.width,
-            height: k.height,
-        });
+        let region = self
+            .working
+            .and_then(|w| w.1)
+            .unwrap_or(Roi::whole(k.width, k.height));
         let Self {
             raster,
             arcs,
@@ -383,13 +362,7 @@ impl SceneRenderer {
             ..
         } = self;
         arcs.clear();
-        let holds = |outer: Roi, inner: Roi| {
-            outer.x0 <= inner.x0
-                && outer.y0 <= inner.y0
-                && outer.x0 + outer.width >= inner.x0 + inner.width
-                && outer.y0 + outer.height >= inner.y0 + inner.height
-        };
-        if holds(work, region) {
+        if work.holds(&region) {
             // the centre rays already cast there
             for y in region.y0..region.y0 + region.height {
                 let row = (y - work.y0) as usize * work.width as usize;
@@ -401,22 +374,7 @@ impl SceneRenderer {
             }
             return tape_band(arcs, o);
         }
-        raster.tiles(
-            camera,
-            region,
-            |scene, optics, [x0, y0, x1, y1], candidates| {
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
-                        if let Some(hit) =
-                            scene.first_hit_along(candidates, u, v, &optics.ray(x, y))
-                        {
-                            arcs.push(hit.arc_mm as f32);
-                        }
-                    }
-                }
-            },
-        );
+        raster.centre_hits(camera, region, |_, _, hit| arcs.push(hit.arc_mm as f32));
         tape_band(arcs, o)
     }
 
