@@ -17,27 +17,6 @@ use kflex_model::{
 
 const SIDE: u32 = 48;
 
-/// `mask` resampled to 48×48 by area vote: a cell is set where at least half
-/// the pixels whose centres fall in it are.
-fn vote(mask: &Mask) -> Mask {
-    let (w, h) = (mask.width() as usize, mask.height() as usize);
-    let n = SIDE as usize;
-    let (mut set, mut all) = (vec![0u32; n * n], vec![0u32; n * n]);
-    for y in 0..h {
-        for x in 0..w {
-            let c = (y * n / h) * n + x * n / w;
-            all[c] += 1;
-            set[c] += u32::from(mask.get(x as u32, y as u32));
-        }
-    }
-    let data = set
-        .iter()
-        .zip(&all)
-        .map(|(&s, &a)| u8::from(2 * s >= a.max(1)))
-        .collect();
-    Mask::from_raw(SIDE, SIDE, data).expect("48×48")
-}
-
 fn distance(a: &Mask, b: &Mask) -> usize {
     a.data()
         .iter()
@@ -100,7 +79,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 ..FrameParams::default()
             };
             let frame = renderer.render_window(&cam, &built.shape(theta, 10.0)?, &params, roi)?;
-            let exact = vote(&frame.instrument);
+            let exact = frame.instrument.vote(SIDE, SIDE)?;
             let e = nearest(&exact) - theta;
             sq[0][g] += e * e;
             counted[0][g] += 1;

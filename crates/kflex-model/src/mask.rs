@@ -186,8 +186,57 @@ impl Mask {
         Ok(())
     }
 
+    /// This mask resampled to `width × height` by area vote: an output pixel
+    /// is set where at least half of the pixels whose centres fall in it are
+    /// (e.g. a region of interest's mask down to IBJAE's 48×48). An output
+    /// pixel no source centre falls in (upsampling) is not set.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming `image width` or `image height` when
+    /// the output size is outside `[1, MAX_IMAGE_SIDE]`.
+    pub fn vote(&self, width: u32, height: u32) -> Result<Mask> {
+        crate::range::check_image_size(width, height)?;
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (ow, oh) = (width as usize, height as usize);
+        let (mut set, mut all) = (vec![0u32; ow * oh], vec![0u32; ow * oh]);
+        for (y, row) in self.data.chunks_exact(w).enumerate() {
+            let base = (y * oh / h) * ow;
+            for (x, &v) in row.iter().enumerate() {
+                let c = base + x * ow / w;
+                all[c] += 1;
+                set[c] += u32::from(v);
+            }
+        }
+        let data = set
+            .iter()
+            .zip(&all)
+            .map(|(&s, &a)| u8::from(a > 0 && 2 * s >= a))
+            .collect();
+        Ok(Mask {
+            width,
+            height,
+            data,
+        })
+    }
+
     /// Sets pixel `i` of the row-major buffer.
     pub(crate) fn set_index(&mut self, i: usize) {
         self.data[i] = 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vote_sets_cells_at_least_half_covered() {
+        // 4×4 → 2×2: top-left 2 of 4 set (half: set), top-right 1 of 4 (not),
+        // bottom-left all four, bottom-right none
+        let m = Mask::from_raw(4, 4, vec![1, 1, 1, 0, 0, 0, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0]).unwrap();
+        assert_eq!(m.vote(2, 2).unwrap().data(), &[1, 0, 1, 0]);
+        // the same size gives the same mask; a bad size names the axis
+        assert_eq!(m.vote(4, 4).unwrap(), m);
+        assert!(matches!(m.vote(0, 2), Err(ModelError::OutOfRange(e)) if e.name == "image width"));
     }
 }

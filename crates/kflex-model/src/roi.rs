@@ -116,7 +116,10 @@ mod tests {
             height: 460,
         };
         assert!(whole.holds(&inner) && whole.holds(&whole) && !inner.holds(&whole));
-        let past = Roi { width: 631, ..inner };
+        let past = Roi {
+            width: 631,
+            ..inner
+        };
         assert!(!whole.holds(&past));
         // no overflow at the far end of u32
         let far = Roi {

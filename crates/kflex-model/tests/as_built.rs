@@ -93,25 +93,6 @@ fn bad_tolerances_and_hand_built_links_are_refused_by_name() {
     }
 }
 
-/// `mask` resampled to 48×48 by area vote.
-fn vote(mask: &Mask) -> Mask {
-    let (w, h) = (mask.width() as usize, mask.height() as usize);
-    let (mut set, mut all) = (vec![0u32; 48 * 48], vec![0u32; 48 * 48]);
-    for y in 0..h {
-        for x in 0..w {
-            let c = (y * 48 / h) * 48 + x * 48 / w;
-            all[c] += 1;
-            set[c] += u32::from(mask.get(x as u32, y as u32));
-        }
-    }
-    let data = set
-        .iter()
-        .zip(&all)
-        .map(|(&s, &a)| u8::from(2 * s >= a.max(1)))
-        .collect();
-    Mask::from_raw(48, 48, data).unwrap()
-}
-
 #[test]
 fn the_raw_pixel_nearest_neighbour_errs_by_2_to_4_degrees_across_the_gap() {
     // tools/reality_gap.sh measures 3.00 deg over 500 frames (0.56 with no gap);
@@ -142,7 +123,7 @@ fn the_raw_pixel_nearest_neighbour_errs_by_2_to_4_degrees_across_the_gap() {
             raster
                 .silhouette_window(&cam, &built.shape(theta, 10.0).unwrap(), roi, &mut m)
                 .unwrap();
-            let q = vote(&m);
+            let q = m.vote(48, 48).unwrap();
             let best = database
                 .iter()
                 .min_by_key(|(_, d)| {
