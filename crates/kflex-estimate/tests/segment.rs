@@ -78,20 +78,12 @@ fn taped_part_is_lost_and_the_rest_found() {
         eprintln!(
             "tape {fraction} at {position}: IoU vs visible part {iou:.3}, {on_tape} px on the tape"
         );
-        // KNOWN REGRESSION (issue 9, adaptive threshold): with 40 % tape at the
-        // distal end the tape is the largest non-metal colour left among the
-        // bright regions, the tissue estimate lands on it and the tissue is
-        // taken for instrument: IoU 0.286 (the fixed thresholds gave ≥ 0.85).
-        // Asserted at what is reached, not at the goal.
-        let goal = if (fraction, position) == (0.4, 1.0) {
-            0.25
-        } else {
-            0.85
-        };
-        assert!(iou >= goal, "IoU against the visible part {iou}");
+        // measured on camera v2's frames: 0.980 / 0.977 / 0.992, at most 34 px on the tape
+        assert!(iou >= 0.85, "IoU against the visible part {iou}");
         assert!(
-            (fraction, position) == (0.4, 1.0) || on_tape * 50 < tape.count().max(1),
-            "the red tape must not read as instrument"
+            on_tape * 50 < tape.count().max(1),
+            "the red tape must not read as instrument: {on_tape} of {} px",
+            tape.count()
         );
     }
 }
