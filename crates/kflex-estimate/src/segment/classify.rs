@@ -97,6 +97,7 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
         cells,
         region_class,
         votes,
+        cell_root,
         ..
     } = s;
     // 1–3: the frame's statistics
@@ -203,20 +204,29 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     if region_class.contains(&CLIPPED) {
         votes.clear();
         votes.resize(regions.len(), [0, 0]);
-        let mut vote = |a: u32, b: u32| {
-            let (ra, rb) = (parent[a as usize] as usize, parent[b as usize] as usize);
-            if ra != rb && region_class[ra] == CLIPPED && region_class[rb] != CLIPPED {
+        // each cell's region root once, so that the neighbours' test below
+        // reads two arrays in order and looks up only the pairs that touch
+        // a clipped region
+        cell_root.clear();
+        cell_root.extend(labels.iter().map(|&l| parent[l as usize]));
+        let mut vote = |ra: usize, rb: usize| {
+            if region_class[ra] == CLIPPED && region_class[rb] != CLIPPED {
                 votes[ra][usize::from(instrument[rb])] += 1;
             }
         };
-        for (i, &a) in labels.iter().enumerate() {
-            if (i + 1) % cols != 0 && i + 1 < labels.len() {
-                vote(a, labels[i + 1]);
-                vote(labels[i + 1], a);
-            }
-            if let Some(&b) = labels.get(i + cols) {
-                vote(a, b);
-                vote(b, a);
+        let n = cell_root.len();
+        for i in 0..n {
+            let a = cell_root[i] as usize;
+            for j in [i + 1, i + cols] {
+                let across_row = j == i + 1 && j % cols == 0;
+                if j >= n || across_row {
+                    continue;
+                }
+                let b = cell_root[j] as usize;
+                if a != b {
+                    vote(a, b);
+                    vote(b, a);
+                }
             }
         }
         for (i, c) in region_class.iter().enumerate() {

@@ -154,6 +154,8 @@ struct Scratch {
     region_class: Vec<u8>,
     /// Per clipped region: cell edges shared with tissue and with instrument.
     votes: Vec<[u32; 2]>,
+    /// Per cell: the root of its region (for the clipped regions' vote).
+    cell_root: Vec<u32>,
     cells: Vec<u8>,
     seen: Vec<bool>,
     flood: Vec<usize>,

@@ -47,6 +47,8 @@ pub(super) fn split(s: &mut Scratch, depth: usize, rw: usize, rh: usize, p: Segm
     }
     s.votes.clear();
     s.votes.reserve(cols * rows);
+    s.cell_root.clear();
+    s.cell_root.reserve(cols * rows);
     s.stack.clear();
     s.stack.reserve(3 * depth + 1);
     s.stack.push((depth - 1, 0, 0));
