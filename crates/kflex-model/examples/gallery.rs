@@ -1,5 +1,14 @@
-//! Renders every background with the paper's four occlusion cases into one
-//! contact sheet: `cargo run -p kflex-model --example gallery -- OUT.png`.
+//! A contact sheet of the clinical backgrounds with the paper's four occlusion
+//! cases and four poses: `cargo run --release -p kflex-model --example gallery -- OUT.png`
+//! (`make gallery` writes `assets/gallery.png`).
+//!
+//! Two rows per background (colon, stomach, larynx; seeds 7 and 8), four
+//! tiles of 320 × 240 per row (each a 2 × 2 average of a 640 × 480 frame).
+//! Columns are the occlusion cases — none, 20 % middle, 40 % middle, 40 %
+//! distal — and the poses (θ, d) are a Latin square over them, so each
+//! background shows every occlusion and every pose: the first row
+//! (30°, 10 mm), (−90°, 5 mm), (90°, 20 mm), (0°, 35 mm), the second the
+//! same poses shifted by two columns.
 use kflex_model::Camera;
 use kflex_model::Instrument;
 use kflex_model::{Background, FrameParams, Occlusion, SceneRenderer};
@@ -9,28 +18,38 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .nth(1)
         .unwrap_or_else(|| "gallery.png".into());
     let camera = Camera::default();
-    let shape = Instrument::kflex().shape(30.0, 10.0)?;
+    let poses = [(30.0, 10.0), (-90.0, 5.0), (90.0, 20.0), (0.0, 35.0)];
     let cases = [None, Some((0.2, 0.5)), Some((0.4, 0.5)), Some((0.4, 1.0))];
     let (tw, th) = (320u32, 240u32);
-    let mut sheet = image::RgbImage::new(tw * 4, th * 3);
+    let mut sheet = image::RgbImage::new(tw * 4, th * 6);
     let mut renderer = SceneRenderer::new();
-    for (row, bg) in Background::ALL.iter().enumerate() {
-        for (col, case) in cases.iter().enumerate() {
-            let params = FrameParams {
-                background: *bg,
-                seed: 7,
-                occlusion: case.map(|(fraction, position)| Occlusion { fraction, position }),
-                ..FrameParams::default()
-            };
-            let f = renderer.render(&camera, &shape, &params)?;
-            for y in 0..th {
-                for x in 0..tw {
-                    let i = 3 * ((2 * y) * f.width + 2 * x) as usize;
-                    sheet.put_pixel(
-                        col as u32 * tw + x,
-                        row as u32 * th + y,
-                        image::Rgb([f.rgb[i], f.rgb[i + 1], f.rgb[i + 2]]),
-                    );
+    for (b, bg) in Background::ALL.iter().enumerate() {
+        for (half, seed) in [7u64, 8].into_iter().enumerate() {
+            let row = 2 * b + half;
+            for (col, case) in cases.iter().enumerate() {
+                let (theta, d) = poses[(col + 2 * half) % poses.len()];
+                let shape = Instrument::kflex().shape(theta, d)?;
+                let params = FrameParams {
+                    background: *bg,
+                    seed,
+                    occlusion: case.map(|(fraction, position)| Occlusion { fraction, position }),
+                    ..FrameParams::default()
+                };
+                let f = renderer.render(&camera, &shape, &params)?;
+                let at =
+                    |x: u32, y: u32, k: usize| u16::from(f.rgb[3 * (y * f.width + x) as usize + k]);
+                for y in 0..th {
+                    for x in 0..tw {
+                        let px = std::array::from_fn(|k| {
+                            let (x2, y2) = (2 * x, 2 * y);
+                            let s = at(x2, y2, k)
+                                + at(x2 + 1, y2, k)
+                                + at(x2, y2 + 1, k)
+                                + at(x2 + 1, y2 + 1, k);
+                            ((s + 2) / 4) as u8
+                        });
+                        sheet.put_pixel(col as u32 * tw + x, row as u32 * th + y, image::Rgb(px));
+                    }
                 }
             }
         }
