@@ -56,5 +56,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     sheet.save(&out)?;
     println!("wrote {out}");
+    // background synthesis: a fresh renderer's first frame less a cached one
+    let shape = Instrument::kflex().shape(30.0, 10.0)?;
+    for (w, h) in [(640u32, 480u32), (1920, 1080)] {
+        let cam = camera.with_intrinsics(kflex_model::Intrinsics::from_fov(w, h, 100.0)?);
+        for bg in Background::ALL {
+            let params = FrameParams {
+                background: bg,
+                ..FrameParams::default()
+            };
+            let mut r = SceneRenderer::new();
+            let t0 = std::time::Instant::now();
+            r.render(&cam, &shape, &params)?;
+            let first = t0.elapsed();
+            let t1 = std::time::Instant::now();
+            r.render(&cam, &shape, &params)?;
+            let cached = t1.elapsed();
+            println!(
+                "{bg:?} {w}x{h}: background {:.1} ms",
+                (first.as_secs_f64() - cached.as_secs_f64()) * 1e3
+            );
+        }
+    }
     Ok(())
 }

@@ -209,7 +209,7 @@ fn vessel_tree(rng: &mut impl Rng, look: &Look, w: usize, h: usize) -> Vec<f32> 
         let mut segments = 0;
         while let Some((mut x, mut y, mut heading, mut width, mut steps)) = stack.pop() {
             let mut turn = 0.0f32;
-            while width > 0.45 * px && steps < 400 && segments < 4000 {
+            while width > 0.45 * px && steps < 400 && segments < 800 {
                 turn = 0.85 * turn + rng.random_range(-0.04..0.04);
                 heading += turn;
                 let len = 3.5 * px;
@@ -304,18 +304,18 @@ fn highlights(
         };
         let long = px * rng.random_range(5.0..11.0);
         let short = px * rng.random_range(2.0..3.5);
-        let peak = rng.random_range(0.7..1.0);
+        let peak = rng.random_range(0.85..1.0);
         let parts = rng.random_range(1..=3);
         for p in 0..parts {
             let off = if p == 0 {
                 0.0
             } else {
-                long * rng.random_range(-1.1..1.1)
+                long * rng.random_range(-0.8..0.8)
             };
             let scale = if p == 0 {
                 1.0
             } else {
-                rng.random_range(0.45..0.8)
+                rng.random_range(0.6..0.9)
             };
             let (cx, cy) = (x as f32 + 0.5 + off * tx, y as f32 + 0.5 + off * ty);
             blob(
@@ -333,7 +333,7 @@ fn highlights(
 
 /// One elliptic highlight centred at `c`, long axis along unit `t`.
 fn blob(img: &mut [f32], w: usize, h: usize, c: [f32; 2], t: [f32; 2], axes: [f32; 2], peak: f32) {
-    let reach = 2.5 * axes[0].max(axes[1]);
+    let reach = 1.5 * axes[0].max(axes[1]) + 1.0;
     let (x0, x1) = (
         (c[0] - reach).max(0.0) as usize,
         ((c[0] + reach) as usize).min(w - 1),
@@ -347,7 +347,8 @@ fn blob(img: &mut [f32], w: usize, h: usize, c: [f32; 2], t: [f32; 2], axes: [f3
             let (dx, dy) = (x as f32 + 0.5 - c[0], y as f32 + 0.5 - c[1]);
             let (u, v) = (dx * t[0] + dy * t[1], -dx * t[1] + dy * t[0]);
             let d2 = (u / axes[0]).powi(2) + (v / axes[1]).powi(2);
-            let a = peak * (-1.2 * d2).exp();
+            // a flat bright core, a soft rim
+            let a = peak * (1.0 - smoothstep(0.4, 1.4, d2.sqrt()));
             if a < 1e-3 {
                 continue;
             }
@@ -355,6 +356,142 @@ fn blob(img: &mut [f32], w: usize, h: usize, c: [f32; 2], t: [f32; 2], axes: [f3
             for k in 0..3 {
                 img[i + k] += a * (SPECULAR[k] - img[i + k]).max(0.0);
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn luma(img: &[f32]) -> Vec<f32> {
+        img.chunks_exact(3)
+            .map(|p| 0.3 * p[0] + 0.59 * p[1] + 0.11 * p[2])
+            .collect()
+    }
+
+    #[test]
+    fn backgrounds_are_finite_deterministic_and_seeded() {
+        for kind in Background::ALL {
+            let a = background(kind, 5, 160, 120);
+            assert!(a.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+            assert_eq!(a, background(kind, 5, 160, 120));
+            let b = background(kind, 6, 160, 120);
+            let differ = a
+                .iter()
+                .zip(&b)
+                .filter(|(x, y)| (*x - *y).abs() > 0.02)
+                .count();
+            assert!(differ > a.len() / 4, "{kind:?}: {differ} values differ");
+        }
+        // degenerate sizes do not panic
+        for (w, h) in [(1, 1), (2, 1), (7, 9)] {
+            assert_eq!(
+                background(Background::Larynx, 0, w, h).len(),
+                (3 * w * h) as usize
+            );
+        }
+    }
+
+    /// Mean luma of the darkest and of all 32 × 32 blocks.
+    fn darkest_block(l: &[f32], w: usize, h: usize) -> (f32, f32) {
+        let mut blocks = Vec::new();
+        for by in 0..h / 32 {
+            for bx in 0..w / 32 {
+                let mut s = 0.0;
+                for y in 32 * by..32 * (by + 1) {
+                    s += l[y * w + 32 * bx..y * w + 32 * (bx + 1)]
+                        .iter()
+                        .sum::<f32>();
+                }
+                blocks.push(s / 1024.0);
+            }
+        }
+        let mean = blocks.iter().sum::<f32>() / blocks.len() as f32;
+        (blocks.iter().copied().fold(f32::MAX, f32::min), mean)
+    }
+
+    #[test]
+    fn the_colon_lumen_is_a_dark_hole_in_a_lit_wall() {
+        for seed in 0..4 {
+            let l = luma(&background(Background::Colon, seed, 640, 480));
+            let (dark, mean) = darkest_block(&l, 640, 480);
+            assert!(
+                dark < 0.12 * mean,
+                "seed {seed}: lumen {dark:.3}, wall {mean:.3}"
+            );
+        }
+    }
+
+    /// Widths of the larynx's dark glottis (pixels darker than a fifth of
+    /// the median) in the rows a quarter and three quarters down its length.
+    fn glottis_widths(seed: u64) -> (usize, usize) {
+        let (w, h) = (640, 480);
+        let l = luma(&background(Background::Larynx, seed, w as u32, h as u32));
+        let mut sorted = l.clone();
+        sorted.sort_by(f32::total_cmp);
+        let dark = 0.2 * sorted[sorted.len() / 2];
+        let width = |y: usize| (w / 4..3 * w / 4).filter(|&x| l[y * w + x] < dark).count();
+        let rows: Vec<usize> = (0..h).filter(|&y| width(y) > 0).collect();
+        let (top, bottom) = (rows[0], rows[rows.len() - 1]);
+        let at = |f: f32| width(top + ((bottom - top) as f32 * f) as usize);
+        (at(0.25), at(0.75))
+    }
+
+    #[test]
+    fn the_glottis_narrows_toward_the_apex_of_the_v() {
+        for seed in 0..4 {
+            let (upper, lower) = glottis_widths(seed);
+            assert!(
+                upper > 0 && (upper as f32) < 0.7 * lower as f32,
+                "seed {seed}: {upper} px a quarter down, {lower} px three quarters down"
+            );
+        }
+    }
+
+    #[test]
+    fn highlights_are_blobs_not_single_pixels() {
+        let (w, h) = (640usize, 480usize);
+        for kind in Background::ALL {
+            let img = background(kind, 3, w as u32, h as u32);
+            let bright: Vec<bool> = img
+                .chunks_exact(3)
+                .map(|p| p.iter().copied().fold(1.0f32, f32::min) > 0.8)
+                .collect();
+            // 4-connected components of the near-white pixels
+            let mut seen = vec![false; w * h];
+            let mut sizes = Vec::new();
+            for start in 0..w * h {
+                if !bright[start] || seen[start] {
+                    continue;
+                }
+                let (mut stack, mut size) = (vec![start], 0);
+                seen[start] = true;
+                while let Some(i) = stack.pop() {
+                    size += 1;
+                    let (x, y) = (i % w, i / w);
+                    let near = [
+                        (x > 0).then(|| i - 1),
+                        (x + 1 < w).then(|| i + 1),
+                        (y > 0).then(|| i - w),
+                        (y + 1 < h).then(|| i + w),
+                    ];
+                    for j in near.into_iter().flatten() {
+                        if bright[j] && !seen[j] {
+                            seen[j] = true;
+                            stack.push(j);
+                        }
+                    }
+                }
+                sizes.push(size);
+            }
+            let total: usize = sizes.iter().sum();
+            let in_blobs: usize = sizes.iter().filter(|&&s| s >= 6).sum();
+            assert!(sizes.len() >= 3, "{kind:?}: {} highlights", sizes.len());
+            assert!(
+                in_blobs as f32 >= 0.9 * total as f32,
+                "{kind:?}: components {sizes:?}"
+            );
         }
     }
 }

@@ -85,8 +85,8 @@ impl Colon {
     pub(super) fn surface(&self, x: f32, y: f32) -> Surface {
         let (dx, dy) = (x - self.lumen[0], y - self.lumen[1]);
         // domain warp: irregular, not concentric
-        let wx = dx + 0.06 * self.warp[0].signed(2.2 * x, 2.2 * y, 3);
-        let wy = dy + 0.06 * self.warp[1].signed(2.2 * x, 2.2 * y, 3);
+        let wx = dx + 0.06 * self.warp[0].signed(2.2 * x, 2.2 * y, 2);
+        let wy = dy + 0.06 * self.warp[1].signed(2.2 * x, 2.2 * y, 2);
         let (c, s) = self.axis;
         let (ax, ay) = (c * wx + s * wy, (-s * wx + c * wy) * self.squash);
         let r = (ax * ax + ay * ay).sqrt().max(1e-4);
@@ -101,7 +101,7 @@ impl Colon {
         let far = smoothstep(85.0, 45.0, wall);
         let fold = ridge(phase - k, sigma) * smoothstep(0.3, 0.55, whole) * far;
         let depth_mm = wall - Self::FOLD_MM * fold;
-        let m = 1.0 + 0.35 * self.mottle.signed(14.0 * x, 14.0 * y, 4);
+        let m = 1.0 + 0.35 * self.mottle.signed(14.0 * x, 14.0 * y, 3);
         let base = mix(
             [0.90, 0.50, 0.36],
             [0.86, 0.44, 0.44],
