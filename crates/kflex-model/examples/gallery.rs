@@ -3,7 +3,7 @@
 //! (`make gallery` writes `assets/gallery.png`).
 //!
 //! Two rows per background (colon, stomach, larynx; seeds 7 and 8), four
-//! tiles of 320 × 240 per row (each a 2 × 2 average of a 640 × 480 frame).
+//! tiles of 213 × 160 per row (each a 3 × 3 average of a 640 × 480 frame).
 //! Columns are the occlusion cases — none, 20 % middle, 40 % middle, 40 %
 //! distal — and the poses (θ, d) are a Latin square over them, so each
 //! background shows every occlusion and every pose: the first row
@@ -20,7 +20,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let camera = Camera::default();
     let poses = [(30.0, 10.0), (-90.0, 5.0), (90.0, 20.0), (0.0, 35.0)];
     let cases = [None, Some((0.2, 0.5)), Some((0.4, 0.5)), Some((0.4, 1.0))];
-    let (tw, th) = (320u32, 240u32);
+    // each tile a 3 × 3 box average of the 640 × 480 frame
+    let (tw, th) = (213u32, 160u32);
     let mut sheet = image::RgbImage::new(tw * 4, th * 6);
     let mut renderer = SceneRenderer::new();
     for (b, bg) in Background::ALL.iter().enumerate() {
@@ -33,6 +34,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     background: *bg,
                     seed,
                     occlusion: case.map(|(fraction, position)| Occlusion { fraction, position }),
+                    // without sensor noise: the sheet shows the scene (and stays small as a PNG)
+                    noise_std: 0.0,
                     ..FrameParams::default()
                 };
                 let f = renderer.render(&camera, &shape, &params)?;
@@ -41,12 +44,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 for y in 0..th {
                     for x in 0..tw {
                         let px = std::array::from_fn(|k| {
-                            let (x2, y2) = (2 * x, 2 * y);
-                            let s = at(x2, y2, k)
-                                + at(x2 + 1, y2, k)
-                                + at(x2, y2 + 1, k)
-                                + at(x2 + 1, y2 + 1, k);
-                            ((s + 2) / 4) as u8
+                            let mut s = 0;
+                            for dy in 0..3 {
+                                for dx in 0..3 {
+                                    s += at(3 * x + dx, 3 * y + dy, k);
+                                }
+                            }
+                            ((s + 4) / 9) as u8
                         });
                         sheet.put_pixel(col as u32 * tw + x, row as u32 * th + y, image::Rgb(px));
                     }
