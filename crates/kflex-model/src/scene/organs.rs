@@ -272,7 +272,7 @@ impl Larynx {
         let skin = mix(
             mix(
                 pink.map(|v| v * fold_shade),
-                [0.97, 0.88, 0.85],
+                [0.96, 0.74, 0.70],
                 cord.powf(0.3),
             ),
             [0.95, 0.70, 0.66],
