@@ -11,7 +11,7 @@ STAMP := $(VENV)/.installed
 CARGO ?= cargo
 RUN_ARGS ?=
 
-.PHONY: run test venv build test-rust test-embedded test-python lint fmt bench fit loops clean
+.PHONY: run test venv build test-rust test-embedded test-python lint fmt bench fit loops gallery clean
 
 run: venv build
 	./target/release/kflex-cli run $(RUN_ARGS)
@@ -61,6 +61,11 @@ fit:
 # the picture of the calibrated loops in crates/kflex-model/CALIBRATION.md
 loops: venv
 	$(VPY) tools/plot_loops.py
+
+# the contact sheet of the clinical backgrounds (crates/kflex-model/examples/gallery.rs)
+gallery:
+	mkdir -p assets
+	$(CARGO) run --release --locked -p kflex-model --example gallery -- assets/gallery.png
 
 clean:
 	rm -rf target $(VENV)

@@ -306,3 +306,38 @@ fn bad_input_is_a_typed_error() {
         Some(("image width", 0.0))
     );
 }
+
+/// Mean 8-bit brightness (mean of R, G, B) of the tissue in the central half
+/// of a noiseless frame (the instrument's pixels left out), over seeds 0–3.
+fn central_tissue_brightness(bg: Background) -> f64 {
+    let (mut sum, mut n) = (0.0, 0u64);
+    for seed in 0..4 {
+        let f = frame(FrameParams {
+            background: bg,
+            seed,
+            noise_std: 0.0,
+            ..FrameParams::default()
+        });
+        for y in 120..360 {
+            for x in 160..480 {
+                if f.instrument.get(x, y) {
+                    continue;
+                }
+                let i = 3 * (y * 640 + x) as usize;
+                sum += f.rgb[i..i + 3].iter().map(|&v| f64::from(v)).sum::<f64>() / 3.0;
+                n += 1;
+            }
+        }
+    }
+    sum / n as f64
+}
+
+#[test]
+fn central_brightness_stays_near_the_old_backgrounds() {
+    for bg in Background::ALL {
+        println!(
+            "{bg:?}: central tissue brightness {:.1}",
+            central_tissue_brightness(bg)
+        );
+    }
+}

@@ -1,5 +1,8 @@
-//! Procedural clinical backgrounds: colon, stomach and larynx textures from
-//! smooth value noise, folds shaped per organ, vessels and wet highlights.
+//! Procedural clinical backgrounds: colon, stomach and larynx from
+//! domain-warped smooth noise shaped per organ ([`super::organs`]), branching
+//! vessels and wet highlights, lit by the endoscope's light at the camera
+//! with the same inverse-square falloff as the instrument
+//! ([`super::shading::falloff`]) and a cosine term from the tissue's slope.
 
 use std::str::FromStr;
 
@@ -7,6 +10,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use super::noise::smoothstep;
+use super::organs::{Colon, FOCAL_H, Larynx, Stomach, Surface};
+use super::shading::falloff;
 use crate::error::{ModelError, Result};
 
 /// Procedural clinical background, after the paper's printed colon, stomach and larynx images.
@@ -40,132 +46,452 @@ impl FromStr for Background {
     }
 }
 
-/// Lattice value noise in [0, 1], smooth, from a hashed seed.
-fn value_noise(x: f64, y: f64, seed: u64) -> f64 {
-    let hash = |i: i64, j: i64| -> f64 {
-        let mut v = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
-            ^ (j as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
-            ^ seed;
-        v ^= v >> 31;
-        v = v.wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        v ^= v >> 29;
-        (v >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let (xi, yi) = (x.floor() as i64, y.floor() as i64);
-    let (fx, fy) = (x - x.floor(), y - y.floor());
-    let (sx, sy) = (fx * fx * (3.0 - 2.0 * fx), fy * fy * (3.0 - 2.0 * fy));
-    let top = hash(xi, yi) * (1.0 - sx) + hash(xi + 1, yi) * sx;
-    let bottom = hash(xi, yi + 1) * (1.0 - sx) + hash(xi + 1, yi + 1) * sx;
-    top * (1.0 - sy) + bottom * sy
+/// One organ's surface model.
+enum Organ {
+    Colon(Colon),
+    Stomach(Stomach),
+    Larynx(Larynx),
 }
 
-fn fbm(x: f64, y: f64, seed: u64) -> f64 {
-    (0..4)
-        .map(|o| {
-            value_noise(
-                x * f64::from(1 << o),
-                y * f64::from(1 << o),
-                seed.wrapping_add(o),
-            ) / f64::from(1 << o)
-        })
-        .sum::<f64>()
-        / 1.875
+impl Organ {
+    fn surface(&self, x: f32, y: f32) -> Surface {
+        match self {
+            Organ::Colon(o) => o.surface(x, y),
+            Organ::Stomach(o) => o.surface(x, y),
+            Organ::Larynx(o) => o.surface(x, y),
+        }
+    }
 }
 
-/// The background texture, RGB f32 in [0, 1].
+/// Per kind: the endoscope's exposure (the gain that puts the centre of the
+/// view at the old backgrounds' level), the light scattered back by the
+/// surrounding wet tissue (a floor under the cosine term), the vessels'
+/// count and strength, and the wet highlights' count.
+struct Look {
+    exposure: f32,
+    ambient: f32,
+    vessels: (u32, u32),
+    vessel_strength: f32,
+    highlights: (u32, u32),
+}
+
+fn look(kind: Background) -> Look {
+    match kind {
+        Background::Colon => Look {
+            exposure: 2.7,
+            ambient: 0.2,
+            vessels: (5, 9),
+            vessel_strength: 0.55,
+            highlights: (10, 18),
+        },
+        Background::Stomach => Look {
+            exposure: 1.08,
+            ambient: 0.2,
+            vessels: (2, 4),
+            vessel_strength: 0.4,
+            highlights: (12, 20),
+        },
+        Background::Larynx => Look {
+            exposure: 1.95,
+            ambient: 0.2,
+            vessels: (3, 6),
+            vessel_strength: 0.45,
+            highlights: (5, 9),
+        },
+    }
+}
+
+/// Vessels' colour: the albedo is multiplied toward it (dark red-purple).
+const VESSEL: [f32; 3] = [0.60, 0.34, 0.48];
+/// Wet highlights' colour at their core: white, a little warm.
+const SPECULAR: [f32; 3] = [1.0, 0.97, 0.93];
+
+/// The background texture, linear RGB f32 in [0, 1], row-major, 3 per pixel.
 pub(super) fn background(kind: Background, seed: u64, w: u32, h: u32) -> Vec<f32> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (kind as u64 * 0x1000_0001));
-    let (base, dark): ([f64; 3], [f64; 3]) = match kind {
-        Background::Colon => ([0.88, 0.58, 0.45], [0.35, 0.12, 0.10]),
-        Background::Stomach => ([0.72, 0.28, 0.25], [0.30, 0.06, 0.07]),
-        Background::Larynx => ([0.92, 0.74, 0.70], [0.30, 0.15, 0.15]),
+    let organ = match kind {
+        Background::Colon => Organ::Colon(Colon::new(&mut rng, seed)),
+        Background::Stomach => Organ::Stomach(Stomach::new(&mut rng, seed)),
+        Background::Larynx => Organ::Larynx(Larynx::new(&mut rng, seed)),
     };
-    let (wf, hf) = (f64::from(w), f64::from(h));
-    let scale = 8.0 / wf.max(hf);
-    let lumen = [
-        wf * rng.random_range(0.35..0.65),
-        hf * rng.random_range(0.3..0.55),
-    ];
-    let phase = rng.random_range(0.0..std::f64::consts::TAU);
-    let mut img = vec![0.0f32; (w * h * 3) as usize];
-    for y in 0..h {
-        for x in 0..w {
-            let (xf, yf) = (f64::from(x), f64::from(y));
-            let n = fbm(xf * scale, yf * scale, seed);
-            let (dx, dy) = ((xf - lumen[0]) / wf, (yf - lumen[1]) / hf);
-            let r = (dx * dx + dy * dy).sqrt();
-            // folds: darker troughs between brighter ridges, shaped per organ
-            let fold = match kind {
-                Background::Colon => (r * 28.0 + 2.0 * n + phase).sin(),
-                Background::Stomach => {
-                    ((yf / hf) * 22.0 + 4.0 * (xf / wf * 3.0 + phase).sin() + 3.0 * n).sin()
-                }
-                Background::Larynx => {
-                    let v = (dx.abs() * 3.0 - dy.abs() * 0.4 - 0.05).abs();
-                    if v < 0.04 {
-                        1.0
-                    } else {
-                        ((yf / hf) * 30.0 + n).sin() * 0.5
-                    }
-                }
-            };
-            let depth = match kind {
-                Background::Larynx => {
-                    (1.0 - (-(dx * dx * 30.0 + dy * dy * 4.0) * 40.0).exp() * 0.85).max(0.1)
-                }
-                _ => (1.0 - (-r * r * 60.0).exp() * 0.9).max(0.05),
-            };
-            // the endoscope's light falls off toward the corners
-            let vignette = 1.0 - 0.45 * ((xf / wf - 0.5).powi(2) + (yf / hf - 0.5).powi(2)) * 2.0;
-            let t = (0.55 + 0.25 * fold + 0.35 * (n - 0.5)).clamp(0.0, 1.0);
-            let i = 3 * (y * w + x) as usize;
-            for ch in 0..3 {
-                img[i + ch] = ((dark[ch] + (base[ch] - dark[ch]) * t) * depth * vignette) as f32;
+    let look = look(kind);
+    let (wu, hu) = (w as usize, h as usize);
+    let vessels = vessel_tree(&mut rng, &look, wu, hu);
+    let n = wu * hu;
+    let mut img = vec![0.0f32; 3 * n];
+    let mut depth = vec![0.0f32; n];
+    let mut crest = vec![0.0f32; n];
+    let (hf, half_w, half_h) = (h.max(1) as f32, w as f32 / 2.0, h as f32 / 2.0);
+    for y in 0..hu {
+        let py = (y as f32 + 0.5 - half_h) / hf;
+        for x in 0..wu {
+            let px = (x as f32 + 0.5 - half_w) / hf;
+            let s = organ.surface(px, py);
+            let i = y * wu + x;
+            let a = vessels[i];
+            for k in 0..3 {
+                img[3 * i + k] = s.albedo[k] * (1.0 - a * (1.0 - VESSEL[k]));
             }
+            depth[i] = s.depth_mm.max(1.0);
+            crest[i] = s.crest;
         }
     }
-    // vessels: random walks, dark red-purple
-    for _ in 0..rng.random_range(6..12) {
-        let (mut px, mut py) = (rng.random_range(0.0..wf), rng.random_range(0.0..hf));
-        let mut heading = rng.random_range(0.0..std::f64::consts::TAU);
-        for _ in 0..rng.random_range(80..260) {
-            heading += rng.random_range(-0.25..0.25);
-            px += heading.cos() * 1.5;
-            py += heading.sin() * 1.5;
-            if px < 0.0 || py < 0.0 || px >= wf || py >= hf {
-                break;
-            }
-            let i = 3 * (py as u32 * w + px as u32) as usize;
-            img[i] *= 0.72;
-            img[i + 1] *= 0.55;
-            img[i + 2] *= 0.65;
-        }
-    }
-    // specular spots on wet mucosa
-    for _ in 0..rng.random_range(10..25) {
-        let (cx, cy, rad) = (
-            rng.random_range(0.0..wf),
-            rng.random_range(0.0..hf),
-            rng.random_range(1.0..3.5),
-        );
-        let (x0, x1) = (
-            (cx - 2.0 * rad).max(0.0) as u32,
-            ((cx + 2.0 * rad) as u32).min(w - 1),
-        );
-        let (y0, y1) = (
-            (cy - 2.0 * rad).max(0.0) as u32,
-            ((cy + 2.0 * rad) as u32).min(h - 1),
-        );
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                let d2 = (f64::from(x) - cx).powi(2) + (f64::from(y) - cy).powi(2);
-                let a = (-(d2) / (rad * rad)).exp() as f32;
-                let i = 3 * (y * w + x) as usize;
-                for ch in 0..3 {
-                    img[i + ch] = img[i + ch] * (1.0 - a) + a;
-                }
-            }
-        }
+    let cos = light(&mut img, &depth, wu, hu, &look);
+    highlights(&mut img, &mut rng, &look, &crest, &cos, &depth, wu, hu);
+    for v in &mut img {
+        *v = if v.is_finite() {
+            v.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
     }
     img
+}
+
+/// Lights the albedo in `img` by the endoscope's light at the camera: the
+/// inverse-square falloff of the distance along each pixel's ray, times the
+/// cosine between the ray and the tissue's normal (from the depth map's
+/// slope), over a floor of scattered light. Returns the cosines.
+fn light(img: &mut [f32], depth: &[f32], w: usize, h: usize, look: &Look) -> Vec<f32> {
+    let mut cos = vec![1.0f32; w * h];
+    if w < 2 || h < 2 {
+        return cos;
+    }
+    let hf = h as f32;
+    // one pixel in ray slope
+    let step = 1.0 / (hf * FOCAL_H);
+    for y in 0..h {
+        let (y0, y1) = (y.saturating_sub(1), (y + 1).min(h - 1));
+        let ty = (y as f32 + 0.5 - hf / 2.0) * step;
+        for x in 0..w {
+            let (x0, x1) = (x.saturating_sub(1), (x + 1).min(w - 1));
+            let tx = (x as f32 + 0.5 - w as f32 / 2.0) * step;
+            let i = y * w + x;
+            let z = depth[i];
+            let zx = (depth[y * w + x1] - depth[y * w + x0]) / ((x1 - x0) as f32 * step);
+            let zy = (depth[y1 * w + x] - depth[y0 * w + x]) / ((y1 - y0) as f32 * step);
+            // the surface z(tx, ty)·(tx, ty, 1) has normal (−z_x, −z_y, z + tx z_x + ty z_y)
+            let n = [-zx, -zy, z + tx * zx + ty * zy];
+            let norm = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            let ray = (1.0 + tx * tx + ty * ty).sqrt();
+            let c = if norm > 0.0 {
+                (z / (norm * ray)).clamp(0.0, 1.0)
+            } else {
+                1.0
+            };
+            cos[i] = c;
+            let gain = look.exposure
+                * falloff(f64::from(z * ray)) as f32
+                * (look.ambient + (1.0 - look.ambient) * c);
+            img[3 * i..3 * i + 3].iter_mut().for_each(|v| *v *= gain);
+        }
+    }
+    cos
+}
+
+/// Branching vessels: smooth random curves whose width tapers, each branch
+/// thinner than its parent; the opacity in [0, 1] per pixel.
+fn vessel_tree(rng: &mut impl Rng, look: &Look, w: usize, h: usize) -> Vec<f32> {
+    let mut alpha = vec![0.0f32; w * h];
+    let px = h as f32 / 480.0;
+    let (wf, hf) = (w as f32, h as f32);
+    let count = rng.random_range(look.vessels.0..=look.vessels.1);
+    for _ in 0..count {
+        let strength = look.vessel_strength * rng.random_range(0.6..1.0);
+        // (x, y, heading, width, steps) in pixels
+        let mut stack = vec![(
+            rng.random_range(0.0..wf),
+            rng.random_range(0.0..hf),
+            rng.random_range(0.0..std::f32::consts::TAU),
+            px * rng.random_range(2.2..4.5),
+            0u32,
+        )];
+        let mut segments = 0;
+        while let Some((mut x, mut y, mut heading, mut width, mut steps)) = stack.pop() {
+            let mut turn = 0.0f32;
+            while width > 0.45 * px && steps < 400 && segments < 800 {
+                turn = 0.85 * turn + rng.random_range(-0.04..0.04);
+                heading += turn;
+                let len = 3.5 * px;
+                let (nx, ny) = (x + len * heading.cos(), y + len * heading.sin());
+                let next = width * 0.992;
+                capsule(&mut alpha, w, h, [x, y, nx, ny], [width, next], strength);
+                (x, y, width) = (nx, ny, next);
+                steps += 1;
+                segments += 1;
+                if x < -20.0 * px || y < -20.0 * px || x > wf + 20.0 * px || y > hf + 20.0 * px {
+                    break;
+                }
+                if width > 0.9 * px && rng.random_bool(0.035) {
+                    let side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                    let fork = heading + side * rng.random_range(0.4..1.0);
+                    stack.push((x, y, fork, width * 0.7, steps));
+                    width *= 0.85;
+                    heading -= side * 0.2;
+                }
+            }
+        }
+    }
+    alpha
+}
+
+/// Draws a segment `[x0, y0, x1, y1]` (pixels) of widths `[w0, w1]` into
+/// `alpha`, soft-edged, keeping each pixel's largest opacity.
+fn capsule(alpha: &mut [f32], w: usize, h: usize, seg: [f32; 4], width: [f32; 2], strength: f32) {
+    let [x0, y0, x1, y1] = seg;
+    let reach = width[0].max(width[1]) + 1.0;
+    let (bx0, bx1) = (x0.min(x1) - reach, x0.max(x1) + reach);
+    let (by0, by1) = (y0.min(y1) - reach, y0.max(y1) + reach);
+    if bx1 < 0.0 || by1 < 0.0 || bx0 >= w as f32 || by0 >= h as f32 {
+        return;
+    }
+    let (dx, dy) = (x1 - x0, y1 - y0);
+    let l2 = (dx * dx + dy * dy).max(1e-6);
+    for y in by0.max(0.0) as usize..(by1.ceil() as usize).min(h) {
+        for x in bx0.max(0.0) as usize..(bx1.ceil() as usize).min(w) {
+            let (qx, qy) = (x as f32 + 0.5 - x0, y as f32 + 0.5 - y0);
+            let t = ((qx * dx + qy * dy) / l2).clamp(0.0, 1.0);
+            let (ex, ey) = (qx - t * dx, qy - t * dy);
+            let d = (ex * ex + ey * ey).sqrt();
+            let half = 0.5 * (width[0] + (width[1] - width[0]) * t);
+            let a = strength * (1.0 - smoothstep(half - 0.6, half + 0.6, d));
+            let p = &mut alpha[y * w + x];
+            *p = p.max(a);
+        }
+    }
+}
+
+/// Wet highlights: a seeded number of small elongated blobs on fold crests
+/// that face the light (each two or three overlapping ellipses along the
+/// fold, a bright core with a soft edge, toward white).
+#[allow(clippy::too_many_arguments)]
+fn highlights(
+    img: &mut [f32],
+    rng: &mut impl Rng,
+    look: &Look,
+    crest: &[f32],
+    cos: &[f32],
+    depth: &[f32],
+    w: usize,
+    h: usize,
+) {
+    if w < 8 || h < 8 {
+        return;
+    }
+    let px = h as f32 / 480.0;
+    let count = rng.random_range(look.highlights.0..=look.highlights.1);
+    for _ in 0..count {
+        // a crest that faces the light, not too far: up to 200 tries
+        let mut spot = None;
+        for _ in 0..200 {
+            let (x, y) = (rng.random_range(3..w - 3), rng.random_range(3..h - 3));
+            let i = y * w + x;
+            if crest[i] > 0.6 && cos[i] > 0.55 && depth[i] < 45.0 {
+                spot = Some((x, y));
+                break;
+            }
+        }
+        let Some((x, y)) = spot else { continue };
+        // along the fold: across the crest measure's gradient
+        let gx = crest[y * w + x + 2] - crest[y * w + x - 2];
+        let gy = crest[(y + 2) * w + x] - crest[(y - 2) * w + x];
+        let g = (gx * gx + gy * gy).sqrt();
+        let (tx, ty) = if g > 1e-4 {
+            (-gy / g, gx / g)
+        } else {
+            let a: f32 = rng.random_range(0.0..std::f32::consts::TAU);
+            (a.cos(), a.sin())
+        };
+        let long = px * rng.random_range(5.0..11.0);
+        let short = px * rng.random_range(2.0..3.5);
+        let peak = rng.random_range(0.85..1.0);
+        let parts = rng.random_range(1..=3);
+        for p in 0..parts {
+            let off = if p == 0 {
+                0.0
+            } else {
+                long * rng.random_range(-0.8..0.8)
+            };
+            let scale = if p == 0 {
+                1.0
+            } else {
+                rng.random_range(0.6..0.9)
+            };
+            let (cx, cy) = (x as f32 + 0.5 + off * tx, y as f32 + 0.5 + off * ty);
+            blob(
+                img,
+                w,
+                h,
+                [cx, cy],
+                [tx, ty],
+                [long * scale, short * scale],
+                peak * scale.sqrt(),
+            );
+        }
+    }
+}
+
+/// One elliptic highlight centred at `c`, long axis along unit `t`.
+fn blob(img: &mut [f32], w: usize, h: usize, c: [f32; 2], t: [f32; 2], axes: [f32; 2], peak: f32) {
+    let reach = 1.5 * axes[0].max(axes[1]) + 1.0;
+    let (x0, x1) = (
+        (c[0] - reach).max(0.0) as usize,
+        ((c[0] + reach) as usize).min(w - 1),
+    );
+    let (y0, y1) = (
+        (c[1] - reach).max(0.0) as usize,
+        ((c[1] + reach) as usize).min(h - 1),
+    );
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let (dx, dy) = (x as f32 + 0.5 - c[0], y as f32 + 0.5 - c[1]);
+            let (u, v) = (dx * t[0] + dy * t[1], -dx * t[1] + dy * t[0]);
+            let d2 = (u / axes[0]).powi(2) + (v / axes[1]).powi(2);
+            // a flat bright core, a soft rim
+            let a = peak * (1.0 - smoothstep(0.4, 1.4, d2.sqrt()));
+            if a < 1e-3 {
+                continue;
+            }
+            let i = 3 * (y * w + x);
+            for k in 0..3 {
+                img[i + k] += a * (SPECULAR[k] - img[i + k]).max(0.0);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn luma(img: &[f32]) -> Vec<f32> {
+        img.chunks_exact(3)
+            .map(|p| 0.3 * p[0] + 0.59 * p[1] + 0.11 * p[2])
+            .collect()
+    }
+
+    #[test]
+    fn backgrounds_are_finite_deterministic_and_seeded() {
+        for kind in Background::ALL {
+            let a = background(kind, 5, 160, 120);
+            assert!(a.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+            assert_eq!(a, background(kind, 5, 160, 120));
+            let b = background(kind, 6, 160, 120);
+            let differ = a
+                .iter()
+                .zip(&b)
+                .filter(|(x, y)| (*x - *y).abs() > 0.02)
+                .count();
+            assert!(differ > a.len() / 4, "{kind:?}: {differ} values differ");
+        }
+        // degenerate sizes do not panic
+        for (w, h) in [(1, 1), (2, 1), (7, 9)] {
+            assert_eq!(
+                background(Background::Larynx, 0, w, h).len(),
+                (3 * w * h) as usize
+            );
+        }
+    }
+
+    /// Mean luma of the darkest and of all 32 × 32 blocks.
+    fn darkest_block(l: &[f32], w: usize, h: usize) -> (f32, f32) {
+        let mut blocks = Vec::new();
+        for by in 0..h / 32 {
+            for bx in 0..w / 32 {
+                let mut s = 0.0;
+                for y in 32 * by..32 * (by + 1) {
+                    s += l[y * w + 32 * bx..y * w + 32 * (bx + 1)]
+                        .iter()
+                        .sum::<f32>();
+                }
+                blocks.push(s / 1024.0);
+            }
+        }
+        let mean = blocks.iter().sum::<f32>() / blocks.len() as f32;
+        (blocks.iter().copied().fold(f32::MAX, f32::min), mean)
+    }
+
+    #[test]
+    fn the_colon_lumen_is_a_dark_hole_in_a_lit_wall() {
+        for seed in 0..4 {
+            let l = luma(&background(Background::Colon, seed, 640, 480));
+            let (dark, mean) = darkest_block(&l, 640, 480);
+            assert!(
+                dark < 0.12 * mean,
+                "seed {seed}: lumen {dark:.3}, wall {mean:.3}"
+            );
+        }
+    }
+
+    /// Widths of the larynx's dark glottis (pixels darker than a fifth of
+    /// the median) in the rows a quarter and three quarters down its length.
+    fn glottis_widths(seed: u64) -> (usize, usize) {
+        let (w, h) = (640, 480);
+        let l = luma(&background(Background::Larynx, seed, w as u32, h as u32));
+        let mut sorted = l.clone();
+        sorted.sort_by(f32::total_cmp);
+        let dark = 0.2 * sorted[sorted.len() / 2];
+        let width = |y: usize| (w / 4..3 * w / 4).filter(|&x| l[y * w + x] < dark).count();
+        let rows: Vec<usize> = (0..h).filter(|&y| width(y) > 0).collect();
+        let (top, bottom) = (rows[0], rows[rows.len() - 1]);
+        let at = |f: f32| width(top + ((bottom - top) as f32 * f) as usize);
+        (at(0.25), at(0.75))
+    }
+
+    #[test]
+    fn the_glottis_narrows_toward_the_apex_of_the_v() {
+        for seed in 0..4 {
+            let (upper, lower) = glottis_widths(seed);
+            assert!(
+                upper > 0 && (upper as f32) < 0.7 * lower as f32,
+                "seed {seed}: {upper} px a quarter down, {lower} px three quarters down"
+            );
+        }
+    }
+
+    #[test]
+    fn highlights_are_blobs_not_single_pixels() {
+        let (w, h) = (640usize, 480usize);
+        for kind in Background::ALL {
+            let img = background(kind, 3, w as u32, h as u32);
+            let bright: Vec<bool> = img
+                .chunks_exact(3)
+                .map(|p| p.iter().copied().fold(1.0f32, f32::min) > 0.8)
+                .collect();
+            // 4-connected components of the near-white pixels
+            let mut seen = vec![false; w * h];
+            let mut sizes = Vec::new();
+            for start in 0..w * h {
+                if !bright[start] || seen[start] {
+                    continue;
+                }
+                let (mut stack, mut size) = (vec![start], 0);
+                seen[start] = true;
+                while let Some(i) = stack.pop() {
+                    size += 1;
+                    let (x, y) = (i % w, i / w);
+                    let near = [
+                        (x > 0).then(|| i - 1),
+                        (x + 1 < w).then(|| i + 1),
+                        (y > 0).then(|| i - w),
+                        (y + 1 < h).then(|| i + w),
+                    ];
+                    for j in near.into_iter().flatten() {
+                        if bright[j] && !seen[j] {
+                            seen[j] = true;
+                            stack.push(j);
+                        }
+                    }
+                }
+                sizes.push(size);
+            }
+            let total: usize = sizes.iter().sum();
+            let in_blobs: usize = sizes.iter().filter(|&&s| s >= 6).sum();
+            assert!(sizes.len() >= 3, "{kind:?}: {} highlights", sizes.len());
+            assert!(
+                in_blobs as f32 >= 0.9 * total as f32,
+                "{kind:?}: components {sizes:?}"
+            );
+        }
+    }
 }

@@ -3,6 +3,8 @@
 //! blur and sensor noise — and the ground-truth masks of every frame.
 
 mod background;
+mod noise;
+mod organs;
 mod sensor;
 mod shading;
 
