@@ -139,8 +139,8 @@ pub struct SceneRenderer {
     hits: Vec<SurfaceHit>,
     inside: Vec<u32>,
     arcs: Vec<f32>,
-    /// The last camera's vignetting, per pixel of the full frame.
-    vignetting: Option<(Camera, Vec<f32>)>,
+    /// The last camera's vignetting over the last shaded region.
+    vignetting: Option<((Camera, Roi), Vec<f32>)>,
     /// The last camera's working region (where the tape's share is measured).
     working: Option<(Camera, Option<Roi>)>,
     /// Standard-normal samples; each frame reads them in a seeded pseudo-random order.
@@ -256,23 +256,21 @@ impl SceneRenderer {
         let mut img = self.shade(camera, shaded_region, work, band);
         // the sensor: vignetting first (the lens), then blur, noise and 8 bits
         let (sw, sh) = (shaded_region.width as usize, shaded_region.height as usize);
-        // the lens's vignetting: separable in neither axis, so a table kept per camera
-        if self.vignetting.as_ref().map(|v| v.0) != Some(*camera) {
-            let mut table = Vec::with_capacity((k.width * k.height) as usize);
-            for y in 0..k.height {
-                for x in 0..k.width {
+        // the lens's vignetting: separable in neither axis, so a table of the
+        // region kept while the camera and the region stay (a loop's do)
+        let key = (*camera, shaded_region);
+        if self.vignetting.as_ref().map(|v| v.0) != Some(key) {
+            let mut table = Vec::with_capacity(sw * sh);
+            for y in shaded_region.y0..shaded_region.y0 + shaded_region.height {
+                for x in shaded_region.x0..shaded_region.x0 + shaded_region.width {
                     table.push(camera.illumination(f64::from(x) + 0.5, f64::from(y) + 0.5) as f32);
                 }
             }
-            self.vignetting = Some((*camera, table));
+            self.vignetting = Some((key, table));
         }
         if let Some((_, table)) = &self.vignetting {
-            for (row, line) in img.chunks_exact_mut(3 * sw).enumerate() {
-                let start =
-                    (shaded_region.y0 as usize + row) * w as usize + shaded_region.x0 as usize;
-                for (px, &v) in line.chunks_exact_mut(3).zip(&table[start..start + sw]) {
-                    px.iter_mut().for_each(|c| *c *= v);
-                }
+            for (px, &v) in img.chunks_exact_mut(3).zip(table) {
+                px.iter_mut().for_each(|c| *c *= v);
             }
         }
         if params.blur_px > 0.0 {
