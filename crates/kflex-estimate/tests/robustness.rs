@@ -13,22 +13,23 @@ use matrix::{Bench, Condition, Tissue, cases};
 /// `(condition, least ROI IoU, least distal IoU)`.
 // Measured on camera v2's frames over the organ backgrounds (smooth-noise
 // folds, tissue lit with the instrument's falloff). The realistic tissue
-// exposed cases the striped backgrounds hid: one case at (60°, 10 mm) under
-// gain 0.4, grey and blue-green tissue, and the larynx under gain 1.6 (pale
-// tissue clipping beside a bright shaft), fail outright.
+// exposed cases the striped backgrounds hid: grey tissue at (60°, 10 mm)
+// and the larynx under gain 1.6 (pale tissue clipping beside a bright
+// shaft) fail outright. The tissue colour now starts from the region's
+// border, which fixed the same pose under gain 0.4 and blue-green tissue.
 const BOUNDS: [(Condition, f64, f64); 12] = [
     (Condition::Baseline, 0.90, 0.85),                  // 0.980 / 0.930
-    (Condition::Gain(0.4), 0.005, 0.01), // BELOW GOAL: 0.010 / 0.014 (stomach and larynx at 60°, 10 mm; median 0.982 / 0.949)
-    (Condition::Gain(1.6), 0.06, 0.04),  // BELOW GOAL: 0.068 / 0.050 (larynx; median 0.957 / 0.934)
+    (Condition::Gain(0.4), 0.88, 0.60),                 // BELOW GOAL: 0.890 / 0.601
+    (Condition::Gain(1.6), 0.06, 0.04), // BELOW GOAL: 0.068 / 0.050 (larynx; median 0.957 / 0.934)
     (Condition::Noise(0.1), 0.90, 0.83), // BELOW GOAL (distal): 0.943 / 0.833
-    (Condition::Blur(3.0), 0.90, 0.78),  // BELOW GOAL (distal): 0.932 / 0.782
+    (Condition::Blur(3.0), 0.90, 0.78), // BELOW GOAL (distal): 0.932 / 0.782
     (Condition::Tint(0.25), 0.90, 0.74), // BELOW GOAL (distal): 0.945 / 0.749
-    (Condition::Specular, 0.90, 0.85),   // 0.921 / 0.851
+    (Condition::Specular, 0.90, 0.85),  // 0.921 / 0.851
     (Condition::Tissue(Tissue::Grey), 0.015, 0.0), // BELOW GOAL: 0.020 / 0.000 (median 0.679 / 0.643)
     (Condition::Tissue(Tissue::Pale), 0.85, 0.59), // BELOW GOAL: 0.882 / 0.599
     (Condition::Tissue(Tissue::White), 0.55, 0.05), // BELOW GOAL: 0.557 / 0.051 (median 0.885 / 0.858)
-    (Condition::Tissue(Tissue::BlueGreen), 0.01, 0.01), // BELOW GOAL: 0.011 / 0.012 (colon and larynx at 60°, 10 mm; median 0.989 / 0.984)
-    (Condition::Tissue(Tissue::Yellow), 0.90, 0.85),    // 0.976 / 0.905
+    (Condition::Tissue(Tissue::BlueGreen), 0.90, 0.85), // 0.981 / 0.933
+    (Condition::Tissue(Tissue::Yellow), 0.90, 0.85), // 0.976 / 0.905
 ];
 
 #[test]
