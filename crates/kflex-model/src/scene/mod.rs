@@ -19,7 +19,7 @@ use crate::raster::{Rasterizer, SurfaceHit};
 use crate::roi::Roi;
 pub use background::Background;
 use sensor::{Sensor, gaussian_blur, normal_table};
-use shading::{Surroundings, surface_colour, tape_band};
+use shading::{Surroundings, surface_colour, tape_band, under_tape};
 
 /// What a cached background depends on: kind, seed, width, height.
 type BackgroundKey = (Background, u64, u32, u32);
@@ -304,9 +304,7 @@ impl SceneRenderer {
             let wrow = (fy - work.y0 as usize) * work_w + (window.x0 - work.x0) as usize;
             for x in 0..ww {
                 if let Some(i) = self.inside[wrow + x].checked_sub(1) {
-                    let hit = &self.hits[i as usize];
-                    let arc = hit.arc_mm as f32;
-                    if band.is_some_and(|(lo, hi)| arc >= lo && arc <= hi) {
+                    if under_tape(&self.hits[i as usize], band) {
                         occluder[y * ww + x] = 1;
                     } else {
                         instrument[y * ww + x] = 1;
@@ -439,7 +437,7 @@ impl SceneRenderer {
                                 let (u, v) = (x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
                                 let c = match scene.first_hit(camera, candidates, u, v) {
                                     (Some(hit), d) => {
-                                        surface_colour(&scene.bodies, &hit, &d, band, &env).0
+                                        surface_colour(&scene.bodies, &hit, &d, band, &env)
                                     }
                                     (None, _) => bg,
                                 };
@@ -449,7 +447,7 @@ impl SceneRenderer {
                         } else if let Some(i) = here {
                             let hit = &hits[i as usize];
                             let d = optics.ray(x as u32, y as u32);
-                            let c = surface_colour(&scene.bodies, hit, &d, band, &env).0;
+                            let c = surface_colour(&scene.bodies, hit, &d, band, &env);
                             img[o..o + 3].copy_from_slice(&c);
                         }
                     }

@@ -55,25 +55,29 @@ impl Surroundings<'_> {
     }
 }
 
-/// The colour of the surface at `hit`, seen along unit `d`, and whether it
-/// is taped: `tape` is the arc-length band under tape, `env` what the steel
-/// reflects.
+/// Whether the surface at `hit` lies under the tape band `tape` (arc lengths).
+pub(super) fn under_tape(hit: &SurfaceHit, tape: Option<(f32, f32)>) -> bool {
+    let arc = hit.arc_mm as f32;
+    tape.is_some_and(|(lo, hi)| arc >= lo && arc <= hi)
+}
+
+/// The colour of the surface at `hit`, seen along unit `d`: tape where
+/// [`under_tape`], else steel; `env` is what the steel reflects.
 pub(super) fn surface_colour(
     bodies: &[CameraBody],
     hit: &SurfaceHit,
     d: &Vector3<f64>,
     tape: Option<(f32, f32)>,
     env: &Surroundings<'_>,
-) -> ([f32; 3], bool) {
+) -> [f32; 3] {
     let n = hit.normal;
     let cos = (-n.dot(d)).clamp(0.0, 1.0);
     let light = falloff(hit.t);
-    let arc = hit.arc_mm as f32;
-    if tape.is_some_and(|(lo, hi)| arc >= lo && arc <= hi) {
+    if under_tape(hit, tape) {
         // matte: Lambert, a faint sheen
         let diffuse = (0.15 + 0.85 * cos) * light;
         let sheen = 0.04 * cos.powi(16) * light;
-        return (TAPE.map(|c| (f64::from(c) * diffuse + sheen) as f32), true);
+        return TAPE.map(|c| (f64::from(c) * diffuse + sheen) as f32);
     }
     // the backbone, seen through the gaps between discs, sits in their shadow
     let body = &bodies[hit.body];
@@ -96,10 +100,9 @@ pub(super) fn surface_colour(
     // the tissue it reflects is lit about as the steel is (no brighter than nominal)
     let reflected = 0.22 * fresnel * shadow * gloss * light.min(1.0);
     let highlight = (0.9 * cos.powi(80) + 0.2 * cos.powi(10)) * light * shadow * gloss;
-    let colour = std::array::from_fn(|k| {
+    std::array::from_fn(|k| {
         (f64::from(METAL[k]) * diffuse + f64::from(seen[k]) * reflected + highlight) as f32
-    });
-    (colour, false)
+    })
 }
 
 /// The arc-length band `[lo, hi]` holding `o.fraction` of `arcs` (the
