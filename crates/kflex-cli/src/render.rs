@@ -7,7 +7,7 @@ use clap::Args;
 use kflex_estimate::{SegmentParams, segment};
 use kflex_model::{
     Background, Camera, FrameParams, Instrument, Intrinsics, Mask, Occlusion, Rasterizer, Roi,
-    SceneRenderer,
+    SceneRenderer, WorkingRegions,
 };
 
 #[derive(Debug, Args)]
@@ -59,10 +59,8 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     };
     let camera = Camera::default().with_intrinsics(intrinsics);
     let shape = Instrument::kflex().shape(args.theta, args.d)?;
-    let occlusion = (args.occlusion != 0.0).then_some(Occlusion {
-        fraction: args.occlusion,
-        position: args.occlusion_position,
-    });
+    let occlusion =
+        (args.occlusion != 0.0).then_some(Occlusion::new(args.occlusion, args.occlusion_position));
     let params = FrameParams {
         background,
         seed: args.seed,
@@ -73,14 +71,19 @@ pub fn render(args: &RenderArgs) -> Result<()> {
         occlusion,
     };
     let frame = SceneRenderer::new().render(&camera, &shape, &params)?;
-    // the working region: where the joint and gripper can be over its poses
-    let roi = Roi::working(&camera)?;
-    let covered = Roi::WORKING_POSES;
+    // the working region of the pose's translation: where the joint and
+    // gripper can be over its band of poses
+    let regions = WorkingRegions::full(&camera)?;
+    let covered = *regions.poses();
+    let roi = regions
+        .nearest(args.theta, args.d)
+        .context("the camera has no working region")?
+        .roi;
     if !covered.contains(args.theta, args.d) {
         let ([lo, hi], [d_lo, d_hi]) = (covered.theta_deg, covered.translation_mm);
         println!(
-            "note: the working region of interest covers θ in [{lo}, {hi}] deg at d in [{d_lo}, {d_hi}] mm; \
-             outside it the region may cut off part of the joint or gripper"
+            "note: the working regions of interest cover θ in [{lo}, {hi}] deg at d in [{d_lo}, {d_hi}] mm; \
+             outside them the region may cut off part of the joint or gripper"
         );
     }
     let roi_camera = camera.with_intrinsics(roi.intrinsics(&intrinsics, 48, 48)?);

@@ -97,7 +97,7 @@ fn plant_steps_allocate_nothing_accepted_or_rejected() {
 fn a_frame_after_the_first_allocates_nothing() {
     let mut renderer = SceneRenderer::new();
     let camera = Camera::default();
-    let roi = Roi::working(&camera).unwrap();
+    let roi = Roi::paper(&camera).unwrap();
     let mut frame = |theta: f64, background: Background, occlusion: Option<Occlusion>| {
         let shape = Instrument::kflex().shape(theta, 10.0).unwrap();
         let params = FrameParams {
@@ -112,14 +112,7 @@ fn a_frame_after_the_first_allocates_nothing() {
     let others = [
         frame(45.0, Background::Larynx, None),
         frame(25.0, Background::Stomach, None),
-        frame(
-            30.0,
-            Background::Colon,
-            Some(Occlusion {
-                fraction: 0.4,
-                position: 1.0,
-            }),
-        ),
+        frame(30.0, Background::Colon, Some(Occlusion::new(0.4, 1.0))),
     ];
     let mut segmenter = Segmenter::new(SegmentParams::default()).unwrap();
     let reference = segmenter

@@ -18,7 +18,7 @@ fn bench(c: &mut Criterion) {
         let f = SceneRenderer::new()
             .render(&camera, &shape, &FrameParams::default())
             .expect("frame");
-        let roi = Roi::working(&camera).expect("working region");
+        let roi = Roi::paper(&camera).expect("working region");
         let mut segmenter = Segmenter::new(SegmentParams::default()).expect("params");
         c.bench_function("segment_working_roi", |b| {
             b.iter(|| {

@@ -42,7 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let camera = Camera::default();
     let instrument = Instrument::kflex();
-    let roi = Roi::working(&camera)?;
+    let roi = Roi::paper(&camera)?;
     let small = camera.with_intrinsics(roi.intrinsics(&camera.intrinsics, SIDE, SIDE)?);
     // the database: nominal silhouettes every 0.5° over [−5°, 55°]
     let mut raster = Rasterizer::new();

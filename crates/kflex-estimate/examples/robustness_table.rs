@@ -16,15 +16,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut segmenter = Segmenter::new(SegmentParams::default())?;
     let cases = cases();
     println!(
-        "{} cases a condition (backgrounds {:?} × θ {:?} deg × d {:?} mm), region {}×{} at ({}, {})",
+        "{} cases a condition (backgrounds {:?} × θ {:?} deg × d {:?} mm), each in the \
+         working region of its pose (`WorkingRegions::full`)",
         cases.len(),
         Background::ALL,
         matrix::THETAS_DEG,
         matrix::DS_MM,
-        bench.roi.width,
-        bench.roi.height,
-        bench.roi.x0,
-        bench.roi.y0
     );
     println!();
     println!(

@@ -9,7 +9,7 @@ use kflex_model::{
 };
 
 /// The default camera's working region.
-static ROI: LazyLock<Roi> = LazyLock::new(|| Roi::working(&Camera::default()).unwrap());
+static ROI: LazyLock<Roi> = LazyLock::new(|| Roi::paper(&Camera::default()).unwrap());
 
 fn crop(mask: &Mask, roi: Roi) -> Mask {
     mask.crop(roi).unwrap()
@@ -63,7 +63,7 @@ fn unoccluded_frames_segment_with_iou_at_least_0_9() {
 fn taped_part_is_lost_and_the_rest_found() {
     for (fraction, position) in [(0.2, 0.5), (0.4, 0.5), (0.4, 1.0)] {
         let params = FrameParams {
-            occlusion: Some(Occlusion { fraction, position }),
+            occlusion: Some(Occlusion::new(fraction, position)),
             ..FrameParams::default()
         };
         let f = render(30.0, params);
@@ -269,10 +269,7 @@ fn a_kept_segmenter_gives_what_a_fresh_one_gives() {
             40.0,
             FrameParams {
                 background: Background::Larynx,
-                occlusion: Some(Occlusion {
-                    fraction: 0.2,
-                    position: 0.5,
-                }),
+                occlusion: Some(Occlusion::new(0.2, 0.5)),
                 ..FrameParams::default()
             },
         ),

@@ -12,7 +12,7 @@ fn silhouettes(c: &mut Criterion) {
     let instrument = Instrument::kflex();
     let camera = Camera::default();
     // a 48×48 region of interest around the working range, as IBJAE uses
-    let working = Roi::working(&camera).expect("working region");
+    let working = Roi::paper(&camera).expect("working region");
     let roi = camera.with_intrinsics(working.intrinsics(&camera.intrinsics, 48, 48).expect("roi"));
     let mut shape = instrument.shape(0.0, 10.0).expect("shape");
     let mut raster = Rasterizer::new();

@@ -1,7 +1,7 @@
 //! Shaded frame throughput. `cargo bench -p kflex-model --bench scene`
 //! Goals (camera v2) on one core: ≥ 300 shaded 640×480 frames per second
 //! with every realism feature on, and ≥ 1,500 per second of the region of
-//! interest alone (`render_window` of `Roi::working`).
+//! interest alone (`render_window` of `Roi::paper`).
 
 use std::hint::black_box;
 
@@ -16,10 +16,7 @@ fn frames(c: &mut Criterion) {
     let mut renderer = SceneRenderer::new();
     let mut theta = 0.0;
     let params = FrameParams {
-        occlusion: Some(Occlusion {
-            fraction: 0.4,
-            position: 1.0,
-        }),
+        occlusion: Some(Occlusion::new(0.4, 1.0)),
         ..FrameParams::default()
     };
     c.bench_function("shaded_640x480", |b| {
@@ -35,7 +32,7 @@ fn frames(c: &mut Criterion) {
             )
         })
     });
-    let roi = Roi::working(&camera).expect("working region");
+    let roi = Roi::paper(&camera).expect("working region");
     c.bench_function("shaded_roi", |b| {
         b.iter(|| {
             theta = (theta + 0.37) % 50.0;

@@ -38,7 +38,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let camera = Camera::default();
     let instrument = Instrument::kflex();
-    let roi = Roi::working(&camera)?;
+    let roi = Roi::paper(&camera)?;
     let small = roi.intrinsics(&camera.intrinsics, 48, 48)?;
     let to_camera = |p: [f64; 3]| {
         let q = camera.camera_from_overtube * Point3::from(p);

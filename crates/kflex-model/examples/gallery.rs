@@ -33,7 +33,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let params = FrameParams {
                     background: *bg,
                     seed,
-                    occlusion: case.map(|(fraction, position)| Occlusion { fraction, position }),
+                    occlusion: case.map(|(fraction, position)| Occlusion::new(fraction, position)),
                     // without sensor noise: the sheet shows the scene (and stays small as a PNG)
                     noise_std: 0.0,
                     ..FrameParams::default()

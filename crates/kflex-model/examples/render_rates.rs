@@ -49,7 +49,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let span = Duration::from_secs_f64(seconds);
     let camera = Camera::default();
     let instrument = Instrument::kflex();
-    let roi = Roi::working(&camera)?;
+    let roi = Roi::paper(&camera)?;
     let small = camera.with_intrinsics(roi.intrinsics(&camera.intrinsics, 48, 48)?);
     let shapes = poses()
         .into_iter()

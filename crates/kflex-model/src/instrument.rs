@@ -104,6 +104,33 @@ pub struct InstrumentShape {
     pub tip_mm: [f64; 3],
 }
 
+impl InstrumentShape {
+    /// The translation d the shape was built at: the arc length where its
+    /// shaft ends, out of the channel (0 for a shape without a shaft).
+    #[must_use]
+    pub fn translation_mm(&self) -> f64 {
+        self.bodies
+            .iter()
+            .find(|b| b.part == Part::Shaft)
+            .map_or(0.0, |b| b.arc_mm[1])
+    }
+
+    /// The bend θ the shape shows, deg: the heading of its clevis (the tool
+    /// past the joint) from the shaft's axis, in the plane it bends in (0 for
+    /// a shape without a clevis).
+    #[must_use]
+    pub fn bend_deg(&self) -> f64 {
+        self.bodies
+            .iter()
+            .find(|b| b.part == Part::Clevis)
+            .map_or(0.0, |b| {
+                (b.b_mm[0] - b.a_mm[0])
+                    .atan2(b.b_mm[2] - b.a_mm[2])
+                    .to_degrees()
+            })
+    }
+}
+
 /// Axial gap between neighbouring discs of the joint, as a share of a link's length.
 const DISC_GAP: f64 = 0.2;
 /// Radius of the backbone (tendons and spine) seen through the gaps, as a share of the links'.

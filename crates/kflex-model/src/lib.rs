@@ -89,5 +89,5 @@ pub use roi::Roi;
 pub use scene::{Background, Frame, FrameParams, Occlusion, SceneRenderer};
 pub use trajectory::{Sample, Sine, Trajectory, TrajectorySampler};
 pub use transmission::{Distal, Seating, SheathParams, TendonSheath, TendonTensions};
-pub use working::PoseRange;
+pub use working::{Banding, PoseRange, WorkingBand, WorkingRegions};
 pub use workspace::TranslationParams;

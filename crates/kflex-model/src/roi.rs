@@ -1,7 +1,7 @@
 //! [`Roi`]: the region of interest of a frame, shared by the camera simulator
 //! (which renders silhouettes of it) and the segmentation (which reads it).
 //! The working region is derived from the camera and the instrument, not
-//! typed in: see [`Roi::working`] (in `working.rs`).
+//! typed in: see [`Roi::paper`] (in `working.rs`).
 
 use serde::{Deserialize, Serialize};
 

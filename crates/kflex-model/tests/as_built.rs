@@ -99,7 +99,7 @@ fn the_raw_pixel_nearest_neighbour_errs_by_2_to_4_degrees_across_the_gap() {
     // 120 frames here, so the bounds allow for the sampling spread
     let instrument = Instrument::kflex();
     let camera = Camera::default();
-    let roi = Roi::working(&camera).unwrap();
+    let roi = Roi::paper(&camera).unwrap();
     let small = camera.with_intrinsics(roi.intrinsics(&camera.intrinsics, 48, 48).unwrap());
     let mut raster = Rasterizer::new();
     let database: Vec<(f64, Mask)> = (0..=120)

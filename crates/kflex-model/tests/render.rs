@@ -476,3 +476,19 @@ fn a_mask_refilled_row_by_row_equals_one_built_whole() {
     ));
     assert_eq!(range_of(m.reshape(0, 3)).name, "image width");
 }
+
+#[test]
+fn a_shape_tells_its_pose() {
+    let instrument = kflex_model::Instrument::kflex();
+    for (theta, d) in [(0.0, 0.0), (30.0, 10.0), (-87.5, 23.25), (120.0, 40.0)] {
+        let shape = instrument.shape(theta, d).unwrap();
+        assert!((shape.translation_mm() - d).abs() < 1e-12, "{theta} {d}");
+        assert!(
+            (shape.bend_deg() - theta).abs() < 1e-9,
+            "{theta} {d}: {}",
+            shape.bend_deg()
+        );
+    }
+    let empty = kflex_model::InstrumentShape::default();
+    assert_eq!((empty.translation_mm(), empty.bend_deg()), (0.0, 0.0));
+}

@@ -5,7 +5,7 @@ use kflex_model::Instrument;
 use kflex_model::ModelError;
 use kflex_model::{Background, FrameParams, Occlusion, SceneRenderer};
 use kflex_model::{Camera, Intrinsics};
-use kflex_model::{Mask, Rasterizer, Roi};
+use kflex_model::{Mask, Rasterizer, Roi, WorkingRegions};
 
 fn frame(params: FrameParams) -> kflex_model::Frame {
     let shape = Instrument::kflex().shape(30.0, 10.0).unwrap();
@@ -74,13 +74,26 @@ fn tape_covers_the_requested_share_where_asked() {
             .unwrap();
         camera.project(last.b_mm).unwrap()
     };
-    for (fraction, position) in [(0.2, 0.5), (0.4, 0.5), (0.4, 1.0), (0.4, 0.0), (0.7, 0.3)] {
+    // the share is measured where IBJAE looks: by default the working
+    // region of the pose, else the region given
+    let band = WorkingRegions::full(&camera).unwrap().at(30.0, 10.0).unwrap().roi;
+    let paper = Roi::paper(&camera).unwrap();
+    assert_ne!(band, paper);
+    for (fraction, position, region) in [
+        (0.2, 0.5, None),
+        (0.4, 0.5, None),
+        (0.4, 1.0, None),
+        (0.4, 0.0, None),
+        (0.7, 0.3, None),
+        (0.2, 0.5, Some(paper)),
+        (0.4, 1.0, Some(paper)),
+    ] {
+        let occlusion = Occlusion::new(fraction, position);
         let f = frame(FrameParams {
-            occlusion: Some(Occlusion { fraction, position }),
+            occlusion: Some(region.map_or(occlusion, |r| occlusion.within(r))),
             ..FrameParams::default()
         });
-        // the share is measured where IBJAE looks: the working region
-        let roi = Roi::working(&camera).unwrap();
+        let roi = region.unwrap_or(band);
         let (taped, visible) = (
             f.occluder.crop(roi).unwrap().count(),
             f.instrument.crop(roi).unwrap().count(),
@@ -125,10 +138,7 @@ fn a_window_is_exactly_the_crop_of_the_full_frame() {
                 frame: 3,
                 blur_px: 1.5,
                 noise_std: 0.05,
-                occlusion: Some(Occlusion {
-                    fraction: 0.3,
-                    position: 1.0,
-                }),
+                occlusion: Some(Occlusion::new(0.3, 1.0)),
                 ..FrameParams::default()
             },
         ),
@@ -136,7 +146,7 @@ fn a_window_is_exactly_the_crop_of_the_full_frame() {
         let shape = Instrument::kflex().shape(theta, d).unwrap();
         let full = renderer.render(&camera, &shape, &params).unwrap();
         for window in [
-            Roi::working(&camera).unwrap(),
+            Roi::paper(&camera).unwrap(),
             Roi {
                 x0: 0,
                 y0: 0,
@@ -282,13 +292,22 @@ fn bad_input_is_a_typed_error() {
         ),
         (
             FrameParams {
-                occlusion: Some(Occlusion {
-                    fraction: 1.5,
-                    position: 0.5,
-                }),
+                occlusion: Some(Occlusion::new(1.5, 0.5)),
                 ..FrameParams::default()
             },
             "occlusion.fraction",
+        ),
+        (
+            FrameParams {
+                occlusion: Some(Occlusion::new(0.2, 0.5).within(Roi {
+                    x0: 600,
+                    y0: 0,
+                    width: 48,
+                    height: 48,
+                })),
+                ..FrameParams::default()
+            },
+            "roi.x0 + roi.width",
         ),
     ] {
         let err = r.render(&Camera::default(), &shape, &bad).unwrap_err();

@@ -51,7 +51,7 @@ impl Default for SegmentParams {
             min_block: 2,
             merge_distance: 0.08,
             metal_chroma: classify::chroma([0.62, 0.64, 0.68]),
-            min_relative_value: 0.3,
+            min_relative_value: 0.15,
             clip_value: 0.94,
             min_component: 0.004,
             min_instrument: 0.002,
@@ -227,7 +227,7 @@ impl Segmenter {
     /// let camera = Camera::default();
     /// let shape = Instrument::kflex().shape(30.0, 10.0)?;
     /// let frame = SceneRenderer::new().render(&camera, &shape, &FrameParams::default())?;
-    /// let roi = Roi::working(&camera)?;
+    /// let roi = Roi::paper(&camera)?;
     /// // keep the segmenter: later frames of this region size allocate nothing
     /// let mut segmenter = Segmenter::new(SegmentParams::default())?;
     /// let seg = segmenter.segment(&frame.rgb, frame.width, frame.height, roi)?;

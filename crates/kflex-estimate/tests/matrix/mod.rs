@@ -8,13 +8,13 @@
 use kflex_estimate::{EstimateError, Segmenter};
 use kflex_model::{
     Background, Camera, Frame, FrameParams, Instrument, InstrumentShape, Mask, Part, Rasterizer,
-    Roi, SceneRenderer,
+    Roi, SceneRenderer, WorkingRegions,
 };
 
 /// Bends of the matrix, deg.
 pub const THETAS_DEG: [f64; 5] = [-60.0, -30.0, 0.0, 30.0, 60.0];
 /// Translations of the matrix, mm.
-pub const DS_MM: [f64; 3] = [0.0, 10.0, 20.0];
+pub const DS_MM: [f64; 3] = [8.0, 20.0, 35.0];
 /// Distal truth smaller than this (px in the region) is not scored: at d = 0
 /// little of the bend and gripper is out of the overtube.
 pub const MIN_DISTAL_PX: usize = 200;
@@ -156,7 +156,10 @@ pub fn cases() -> Vec<Case> {
 pub struct Bench {
     /// The camera (the default 640×480).
     pub camera: Camera,
-    /// Its working region.
+    /// Its working regions: each case is segmented in the region IBJAE
+    /// reads at its pose (the nearest band where the pose lies outside them).
+    pub regions: WorkingRegions,
+    /// The region of frames without the instrument: the band of (0°, 10 mm).
     pub roi: Roi,
     renderer: SceneRenderer,
     raster: Rasterizer,
@@ -165,8 +168,10 @@ pub struct Bench {
 impl Default for Bench {
     fn default() -> Self {
         let camera = Camera::default();
+        let regions = WorkingRegions::full(&camera).expect("working regions");
         Self {
-            roi: Roi::working(&camera).expect("working region"),
+            roi: regions.at(0.0, 10.0).expect("band").roi,
+            regions,
             camera,
             renderer: SceneRenderer::new(),
             raster: Rasterizer::new(),
@@ -190,6 +195,14 @@ impl Rng {
 }
 
 impl Bench {
+    /// The region `case` is segmented in.
+    pub fn roi_of(&self, case: Case) -> Roi {
+        self.regions
+            .nearest(case.theta_deg, case.d_mm)
+            .expect("a band")
+            .roi
+    }
+
     fn seed(background: Background) -> u64 {
         3 + background as u64
     }
@@ -222,7 +235,7 @@ impl Bench {
         let seed = (case.theta_deg.to_bits() ^ case.d_mm.to_bits().rotate_left(17))
             .wrapping_add(case.background as u64)
             | 1;
-        perturb(&mut frame, self.roi, condition, seed);
+        perturb(&mut frame, self.roi_of(case), condition, seed);
         (frame, distal)
     }
 
@@ -237,7 +250,7 @@ impl Bench {
         condition: Condition,
     ) -> Result<Score, EstimateError> {
         let (frame, distal) = self.frame(case, condition);
-        let roi = self.roi;
+        let roi = self.roi_of(case);
         let seg = segmenter.segment(&frame.rgb, frame.width, frame.height, roi)?;
         let truth = frame.instrument.crop(roi).expect("crop");
         let distal = distal.crop(roi).expect("crop");

@@ -17,6 +17,7 @@ use crate::mask::Mask;
 use crate::range::Bounds;
 use crate::raster::{Rasterizer, SurfaceHit};
 use crate::roi::Roi;
+use crate::working::WorkingRegions;
 pub use background::Background;
 use sensor::{Sensor, gaussian_blur, normal_table};
 use shading::{Surroundings, surface_colour, tape_band, under_tape};
@@ -25,9 +26,11 @@ use shading::{Surroundings, surface_colour, tape_band, under_tape};
 type BackgroundKey = (Background, u64, u32, u32);
 
 /// Tape over the instrument: a band covering `fraction` of the instrument's
-/// pixels inside the camera's working region ([`Roi::working`]: what IBJAE
-/// sees), as the paper defines occlusion by the area the tape covers on the
-/// instrument it analyses.
+/// pixels inside a region of interest (what IBJAE sees), as the paper
+/// defines occlusion by the area the tape covers on the instrument it
+/// analyses. The region is `region` where given, else the camera's working
+/// region for the frame's translation ([`WorkingRegions::full`]; the nearest
+/// band outside its range).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Occlusion {
@@ -38,6 +41,33 @@ pub struct Occlusion {
     /// proximal end, 0.5 centred on it (the paper's "middle"), 1 ending at the
     /// tool tip (the paper's "distal part").
     pub position: f64,
+    /// Where the share is measured (the estimator's region of interest);
+    /// `None`: the camera's working region for the frame's translation.
+    #[serde(default)]
+    pub region: Option<Roi>,
+}
+
+impl Occlusion {
+    /// A band over `fraction` of the instrument at `position`, its share
+    /// measured in the camera's working region for the frame's translation.
+    #[must_use]
+    pub const fn new(fraction: f64, position: f64) -> Self {
+        Self {
+            fraction,
+            position,
+            region: None,
+        }
+    }
+
+    /// The same band, its share measured in `region` (e.g. the region an
+    /// estimator reads, [`Roi::paper`] for the paper's experiments).
+    #[must_use]
+    pub const fn within(self, region: Roi) -> Self {
+        Self {
+            region: Some(region),
+            ..self
+        }
+    }
 }
 
 /// How one frame is made.
@@ -141,8 +171,9 @@ pub struct SceneRenderer {
     arcs: Vec<f32>,
     /// The last camera's vignetting over the last shaded region.
     vignetting: Option<((Camera, Roi), Vec<f32>)>,
-    /// The last camera's working region (where the tape's share is measured).
-    working: Option<(Camera, Option<Roi>)>,
+    /// The last camera's working regions (where the tape's share is measured
+    /// by default); `None` in the pair where the camera has none.
+    working: Option<(Camera, Option<WorkingRegions>)>,
     /// Standard-normal samples; each frame reads them in a seeded pseudo-random order.
     normals: Vec<f32>,
 }
@@ -192,7 +223,7 @@ impl SceneRenderer {
     /// assert_eq!(clean.occluder.count(), 0);
     /// // tape over 40 % of the instrument IBJAE sees, at its distal end
     /// let taped = FrameParams {
-    ///     occlusion: Some(Occlusion { fraction: 0.4, position: 1.0 }),
+    ///     occlusion: Some(Occlusion::new(0.4, 1.0)),
     ///     ..FrameParams::default()
     /// };
     /// let frame = renderer.render(&camera, &shape, &taped)?;
@@ -234,6 +265,9 @@ impl SceneRenderer {
         let k = camera.intrinsics;
         let (w, h) = (k.width, k.height);
         window.check_within(w, h)?;
+        if let Some(r) = params.occlusion.and_then(|o| o.region) {
+            r.check_within(w, h)?;
+        }
         let key = (params.background, params.seed, w, h);
         if self.cache.as_ref().map(|c| c.0) != Some(key) {
             let image = background::background(params.background, params.seed, w, h);
@@ -250,7 +284,7 @@ impl SceneRenderer {
         self.raster.prepare(camera, shape);
         self.cast_centres(camera, work);
         let band = match params.occlusion {
-            Some(o) => self.tape_band(camera, o, work),
+            Some(o) => self.tape_band(camera, shape, o, work),
             None => None,
         };
         let mut img = self.shade(camera, shaded_region, work, band);
@@ -340,18 +374,30 @@ impl SceneRenderer {
     }
 
     /// The tape's arc-length band: `o.fraction` of the instrument's pixels
-    /// inside the camera's working region ([`Roi::working`], what IBJAE
-    /// sees; the whole image where the camera has none), placed at
-    /// `o.position` along them.
-    fn tape_band(&mut self, camera: &Camera, o: Occlusion, work: Roi) -> Option<(f32, f32)> {
+    /// inside `o.region`, else the camera's working region for the shape's
+    /// translation (what IBJAE sees; the whole image where the camera has
+    /// none), placed at `o.position` along them.
+    fn tape_band(
+        &mut self,
+        camera: &Camera,
+        shape: &InstrumentShape,
+        o: Occlusion,
+        work: Roi,
+    ) -> Option<(f32, f32)> {
         let k = &camera.intrinsics;
-        if self.working.as_ref().map(|w| w.0) != Some(*camera) {
-            self.working = Some((*camera, Roi::working(camera).ok()));
-        }
-        let region = self
-            .working
-            .and_then(|w| w.1)
-            .unwrap_or(Roi::whole(k.width, k.height));
+        let region = match o.region {
+            Some(r) => r,
+            None => {
+                if self.working.as_ref().map(|w| w.0) != Some(*camera) {
+                    self.working = Some((*camera, WorkingRegions::full(camera).ok()));
+                }
+                self.working
+                    .as_ref()
+                    .and_then(|w| w.1.as_ref())
+                    .and_then(|w| w.nearest(shape.bend_deg(), shape.translation_mm()))
+                    .map_or(Roi::whole(k.width, k.height), |b| b.roi)
+            }
+        };
         let Self {
             raster,
             arcs,
