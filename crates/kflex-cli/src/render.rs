@@ -6,7 +6,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use kflex_estimate::{SegmentParams, segment};
 use kflex_model::{
-    Background, Camera, FrameParams, Instrument, Intrinsics, Mask, Occlusion, Rasterizer, Roi,
+    Background, Camera, FrameParams, Instrument, Intrinsics, Mask, Occlusion, Rasterizer,
     SceneRenderer, WorkingRegions,
 };
 

@@ -77,8 +77,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let band: &WorkingBand = regions
                 .bands()
                 .iter()
-                .filter(|b| b.poses.theta_deg == [t0, t1] && b.poses.contains(t0, d))
-                .last()
+                .rfind(|b| b.poses.theta_deg == [t0, t1] && b.poses.contains(t0, d))
                 .ok_or("no band")?;
             let small = camera.with_intrinsics(band.roi.intrinsics(&camera.intrinsics, 48, 48)?);
             let n = (t1 - t0).round() as i64;

@@ -76,7 +76,11 @@ fn tape_covers_the_requested_share_where_asked() {
     };
     // the share is measured where IBJAE looks: by default the working
     // region of the pose, else the region given
-    let band = WorkingRegions::full(&camera).unwrap().at(30.0, 10.0).unwrap().roi;
+    let band = WorkingRegions::full(&camera)
+        .unwrap()
+        .at(30.0, 10.0)
+        .unwrap()
+        .roi;
     let paper = Roi::paper(&camera).unwrap();
     assert_ne!(band, paper);
     for (fraction, position, region) in [
