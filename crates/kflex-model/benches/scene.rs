@@ -33,6 +33,12 @@ fn frames(c: &mut Criterion) {
         })
     });
     let roi = Roi::paper(&camera).expect("working region");
+    // the tape's share measured in the region rendered, as an estimator
+    // reading that region asks for
+    let params = FrameParams {
+        occlusion: Some(Occlusion::new(0.4, 1.0).within(roi)),
+        ..FrameParams::default()
+    };
     c.bench_function("shaded_roi", |b| {
         b.iter(|| {
             theta = (theta + 0.37) % 50.0;
