@@ -12,28 +12,29 @@ use matrix::{Bench, Condition, Tissue, cases};
 
 /// `(condition, least ROI IoU, least distal IoU)`.
 // Measured over the working range (d = 8, 20, 35 mm), each case in the
-// region IBJAE reads at its pose (`WorkingRegions::full`). The far poses
-// (d = 35 mm) are the weak ones: the steel is dark there, its light falling
-// with distance, against brighter tissue; the near ones meet the goals.
-// A case where the segmentation finds no instrument scores 0.
+// region IBJAE reads at its pose (`WorkingRegions::full`), on frames encoded
+// by the camera's response (BT.709). The far poses (d = 35 mm) are the weak
+// ones; grey tissue is indistinguishable from steel by colour. A case where
+// the segmentation finds no instrument scores 0.
 const BOUNDS: [(Condition, f64, f64); 12] = [
-    (Condition::Baseline, 0.83, 0.72), // BELOW GOAL: 0.836 / 0.723 (larynx, 35 mm; median 0.957 / 0.940)
-    (Condition::Gain(0.4), 0.46, 0.23), // BELOW GOAL: 0.463 / 0.238
-    (Condition::Gain(1.6), 0.38, 0.24), // BELOW GOAL: 0.385 / 0.244
-    (Condition::Noise(0.1), 0.65, 0.46), // BELOW GOAL: 0.660 / 0.462
-    (Condition::Blur(3.0), 0.67, 0.45), // BELOW GOAL: 0.676 / 0.454
-    (Condition::Tint(0.25), 0.44, 0.22), // BELOW GOAL: 0.449 / 0.226
-    (Condition::Specular, 0.82, 0.68), // BELOW GOAL: 0.823 / 0.687
-    (Condition::Tissue(Tissue::Grey), 0.0, 0.0), // BELOW GOAL: 6 of 45 found empty (median 0.569 / 0.413)
-    (Condition::Tissue(Tissue::Pale), 0.47, 0.24), // BELOW GOAL: 0.472 / 0.249
-    (Condition::Tissue(Tissue::White), 0.02, 0.0), // BELOW GOAL: 0.021 / 0.000 (median 0.750 / 0.715)
-    (Condition::Tissue(Tissue::BlueGreen), 0.53, 0.32), // BELOW GOAL: 0.540 / 0.327
-    (Condition::Tissue(Tissue::Yellow), 0.51, 0.28), // BELOW GOAL: 0.514 / 0.289
+    (Condition::Baseline, 0.82, 0.68), // BELOW GOAL: 0.826 / 0.685 (median 0.957 / 0.934)
+    (Condition::Gain(0.4), 0.49, 0.26), // BELOW GOAL: 0.496 / 0.266
+    (Condition::Gain(1.6), 0.62, 0.48), // BELOW GOAL: 0.622 / 0.482
+    (Condition::Noise(0.1), 0.64, 0.49), // BELOW GOAL: 0.646 / 0.493
+    (Condition::Blur(3.0), 0.73, 0.58), // BELOW GOAL: 0.734 / 0.589
+    (Condition::Tint(0.25), 0.63, 0.41), // BELOW GOAL: 0.640 / 0.418
+    (Condition::Specular, 0.80, 0.65), // BELOW GOAL: 0.805 / 0.652
+    (Condition::Tissue(Tissue::Grey), 0.0, 0.0), // BELOW GOAL: 9 of 45 found empty (median 0.076 / 0.115)
+    (Condition::Tissue(Tissue::Pale), 0.0, 0.0), // BELOW GOAL: 1 of 45 found empty (median 0.870 / 0.865)
+    (Condition::Tissue(Tissue::White), 0.0, 0.0), // BELOW GOAL: 1 of 45 found empty (median 0.672 / 0.581)
+    (Condition::Tissue(Tissue::BlueGreen), 0.90, 0.85), // 0.948 / 0.917
+    (Condition::Tissue(Tissue::Yellow), 0.90, 0.85), // 0.915 / 0.880
 ];
 
-/// Frames of the matrix the segmentation calls empty, at most: grey tissue
-/// (BELOW GOAL: 6 of 45 measured; goal 0).
-const MOST_MISSED_GREY: usize = 6;
+/// Frames of the matrix the segmentation calls empty, at most, per tissue
+/// colour (BELOW GOAL: as measured, of 45; goal 0).
+const MOST_MISSED: [(Tissue, usize); 3] =
+    [(Tissue::Grey, 9), (Tissue::Pale, 1), (Tissue::White, 1)];
 
 /// Frames without the instrument that the segmentation calls instrument, at
 /// most, of the 36 tried (BELOW GOAL: 2 measured, wet colon folds in the
@@ -91,7 +92,6 @@ fn no_instrument_only_when_there_is_none() {
         }
     }
     assert!(false_found.len() <= MOST_FALSE_FOUND, "{false_found:#?}");
-    let mut missed_grey = 0;
     for case in cases() {
         assert!(
             bench
@@ -99,11 +99,16 @@ fn no_instrument_only_when_there_is_none() {
                 .is_ok(),
             "{case:?}"
         );
-        missed_grey += usize::from(
-            bench
-                .score(&mut segmenter, case, Condition::Tissue(Tissue::Grey))
-                .is_err(),
-        );
     }
-    assert!(missed_grey <= MOST_MISSED_GREY, "{missed_grey}");
+    for (tissue, most) in MOST_MISSED {
+        let missed = cases()
+            .into_iter()
+            .filter(|&case| {
+                bench
+                    .score(&mut segmenter, case, Condition::Tissue(tissue))
+                    .is_err()
+            })
+            .count();
+        assert!(missed <= most, "{tissue:?}: {missed}");
+    }
 }

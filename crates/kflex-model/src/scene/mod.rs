@@ -19,7 +19,7 @@ use crate::raster::{Rasterizer, SurfaceHit};
 use crate::roi::Roi;
 use crate::working::WorkingRegions;
 pub use background::Background;
-use sensor::{Sensor, gaussian_blur, normal_table};
+use sensor::{Sensor, gaussian_blur, linear_from_encoded, normal_table, response_table};
 use shading::{Surroundings, surface_colour, tape_band, under_tape};
 
 /// What a cached background depends on: kind, seed, width, height.
@@ -151,15 +151,20 @@ pub struct Frame {
 /// 1. **Rays.** The ray through each pixel's centre, bent by the lens, meets
 ///    the instrument's bodies exactly ([`Rasterizer`]): this decides the
 ///    ground-truth masks.
-/// 2. **Shading.** Steel lit by the endoscope's light at the camera, tinted by
-///    the tissue it reflects, matte tape; the light falls off with the inverse
-///    square of the distance. Pixels on the silhouette's edge (where a
+/// 2. **Shading.** In linear light: steel lit by the endoscope's light at the
+///    camera, tinted by the tissue it reflects, matte tape; the light falls
+///    off with the inverse square of the distance. (The backgrounds' looks are
+///    made as the camera shows them and taken back to linear light.) Pixels on the silhouette's edge (where a
 ///    neighbour's centre ray disagrees) are shaded from four rays inside the
 ///    pixel and blended with the background by their coverage: anti-aliased
 ///    edges.
 /// 3. **Sensor.** The lens's vignetting, the illumination gain, Gaussian
-///    blur, Gaussian noise (counter-based, so each pixel's noise depends on
-///    its place in the full frame only), 8 bits.
+///    blur, clipping, the camera's response (BT.709's encoding of linear
+///    light, as video endoscopes deliver it: a far instrument at a quarter of
+///    the near one's light shows at about half its level, as on a real
+///    endoscope, not a quarter), Gaussian noise on the encoded image (as
+///    the paper's augmentation; counter-based, so each pixel's noise depends
+///    on its place in the full frame only), 8 bits.
 #[derive(Debug, Default)]
 pub struct SceneRenderer {
     raster: Rasterizer,
@@ -176,6 +181,8 @@ pub struct SceneRenderer {
     working: Option<(Camera, Option<WorkingRegions>)>,
     /// Standard-normal samples; each frame reads them in a seeded pseudo-random order.
     normals: Vec<f32>,
+    /// The camera's response (`sensor::response_table`).
+    response: Vec<f32>,
 }
 
 /// `r` grown by `by` pixels on each side, clipped to a `w × h` image.
@@ -270,7 +277,10 @@ impl SceneRenderer {
         }
         let key = (params.background, params.seed, w, h);
         if self.cache.as_ref().map(|c| c.0) != Some(key) {
-            let image = background::background(params.background, params.seed, w, h);
+            // the tissue's look is made as the camera shows it; the scene
+            // works in linear light, which the camera's response encodes
+            let mut image = background::background(params.background, params.seed, w, h);
+            image.iter_mut().for_each(|v| *v = linear_from_encoded(*v));
             let env = mean_colour(&image);
             self.cache = Some((key, image, env));
         }
@@ -313,8 +323,12 @@ impl SceneRenderer {
         if self.normals.is_empty() {
             self.normals = normal_table();
         }
+        if self.response.is_empty() {
+            self.response = response_table();
+        }
         let sensor = Sensor {
             normals: &self.normals,
+            response: &self.response,
             key: params.seed.wrapping_mul(0xD1B5_4A32_D192_ED03)
                 ^ params.frame.wrapping_mul(0x8CB9_2BA7_2F3D_8DD7)
                 ^ 0x006e_6f69_7365,

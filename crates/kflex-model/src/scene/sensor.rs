@@ -1,5 +1,6 @@
-//! The endoscope camera's sensor: illumination gain, optical blur, Gaussian
-//! noise and 8-bit quantisation.
+//! The endoscope camera's sensor: illumination gain, optical blur, the
+//! camera's response (BT.709 encoding of linear light, as video endoscopes
+//! deliver it), Gaussian noise and 8-bit quantisation.
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -17,11 +18,45 @@ pub(super) fn normal_table() -> Vec<f32> {
         .collect()
 }
 
-/// The sensor model: gain, Gaussian noise from the table indexed by a
+/// Entries of the response table over linear light `[0, 1]`.
+const RESPONSE: usize = 8192;
+
+/// BT.709's opto-electronic transfer function: linear light `l` in `[0, 1]`
+/// to the encoded value (`4.5 l` below 0.018, `1.099 l^0.45 − 0.099` above).
+fn bt709(l: f32) -> f32 {
+    if l < 0.018 {
+        4.5 * l
+    } else {
+        1.099 * l.powf(0.45) - 0.099
+    }
+}
+
+/// The inverse of [`bt709`], extended past 1 by the same power: an encoded
+/// value back to linear light.
+pub(super) fn linear_from_encoded(e: f32) -> f32 {
+    if e < 0.081 {
+        e / 4.5
+    } else {
+        ((e.max(0.0) + 0.099) / 1.099).powf(1.0 / 0.45)
+    }
+}
+
+/// The camera's response as a table: [`bt709`] at `RESPONSE + 1` even steps
+/// of linear light over `[0, 1]` (read at the nearest step: at most 0.3 of an
+/// 8-bit level off, at the toe's slope of 4.5).
+pub(super) fn response_table() -> Vec<f32> {
+    (0..=RESPONSE)
+        .map(|i| bt709(i as f32 / RESPONSE as f32))
+        .collect()
+}
+
+/// The sensor model: gain, the camera's response, Gaussian noise from the table indexed by a
 /// counter-based hash (SplitMix64's finaliser; a Gaussian per pixel and
 /// channel at a fraction of a sampler's cost), 8 bits.
 pub(super) struct Sensor<'a> {
     pub(super) normals: &'a [f32],
+    /// [`response_table`].
+    pub(super) response: &'a [f32],
     pub(super) key: u64,
     pub(super) gain: f32,
     pub(super) sigma: f32,
@@ -49,8 +84,12 @@ impl Sensor<'_> {
 
     #[inline(always)]
     fn quantise(&self, v: f32, noise: f32) -> u8 {
-        // v ≥ 0 after the clamp, so adding ½ and truncating rounds to nearest
-        ((v * self.gain + noise).clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+        // linear light, clipped by the sensor, encoded by the camera; the
+        // noise is on the encoded image (as the paper's augmentation is); the
+        // values are ≥ 0 after the clamps, so adding ½ and truncating rounds
+        let light = (v * self.gain).clamp(0.0, 1.0);
+        let encoded = self.response[(light * RESPONSE as f32 + 0.5) as usize];
+        ((encoded + noise).clamp(0.0, 1.0) * 255.0 + 0.5) as u8
     }
 
     /// Value `i` of the image (`3 · pixel + channel`) as the sensor reads it.
@@ -207,13 +246,39 @@ mod tests {
 
     /// The sensor reads a value the same whether alone, in a span or in a whole image.
     #[test]
+    fn the_response_encodes_linear_light_as_bt709_does() {
+        let table = response_table();
+        assert_eq!(table.len(), RESPONSE + 1);
+        assert!(table.windows(2).all(|w| w[1] > w[0]), "rising");
+        assert_eq!((table[0], table[RESPONSE]), (0.0, 1.0));
+        // BT.709's two pieces meet (continuity at 0.018) and its mid-grey:
+        // 18 % linear light encodes to 0.409
+        assert!((4.5f32 * 0.018 - (1.099 * 0.018f32.powf(0.45) - 0.099)).abs() < 1e-3);
+        assert!((bt709(0.18) - 0.409).abs() < 1e-3, "{}", bt709(0.18));
+        // the inverse undoes it, past 1 as well (to the standard's own
+        // rounding where its two pieces meet: 2e-4 at 0.081)
+        for e in [0.0f32, 0.03, 0.081, 0.2, 0.5, 0.9, 1.0] {
+            assert!((bt709(linear_from_encoded(e)) - e).abs() < 1e-3, "{e}");
+        }
+        assert!(linear_from_encoded(1.2) > 1.0);
+        // read at the nearest step: within a third of an 8-bit level
+        for i in 0..=1000 {
+            let l = i as f32 / 1000.0;
+            let at = table[(l * RESPONSE as f32 + 0.5) as usize];
+            assert!((at - bt709(l)).abs() * 255.0 < 0.34, "{l}");
+        }
+    }
+
+    #[test]
     fn sensor_pixel_and_image_agree() {
         let normals: Vec<f32> = (0..NORMALS)
             .map(|i| (i as f32 / NORMALS as f32) - 0.5)
             .collect();
         for sigma in [0.0, 0.02] {
+            let response = response_table();
             let sensor = Sensor {
                 normals: &normals,
+                response: &response,
                 key: 42,
                 gain: 1.1,
                 sigma,
