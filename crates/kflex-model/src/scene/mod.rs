@@ -19,7 +19,7 @@ use crate::raster::{Rasterizer, SurfaceHit};
 use crate::roi::Roi;
 use crate::working::WorkingRegions;
 pub use background::Background;
-use sensor::{Sensor, gaussian_blur, linear_from_encoded, normal_table, response_table};
+use sensor::{Response, Sensor, gaussian_blur, linear_from_encoded, normal_table, response_table};
 use shading::{Surroundings, surface_colour, tape_band, under_tape};
 
 /// What a cached background depends on: kind, seed, width, height.
@@ -181,8 +181,8 @@ pub struct SceneRenderer {
     working: Option<(Camera, Option<WorkingRegions>)>,
     /// Standard-normal samples; each frame reads them in a seeded pseudo-random order.
     normals: Vec<f32>,
-    /// The camera's response (`sensor::response_table`).
-    response: Vec<f32>,
+    /// The camera's response (`sensor::response_table`), once made.
+    response: Option<Box<Response>>,
 }
 
 /// `r` grown by `by` pixels on each side, clipped to a `w × h` image.
@@ -323,12 +323,10 @@ impl SceneRenderer {
         if self.normals.is_empty() {
             self.normals = normal_table();
         }
-        if self.response.is_empty() {
-            self.response = response_table();
-        }
+        let response = self.response.get_or_insert_with(response_table);
         let sensor = Sensor {
             normals: &self.normals,
-            response: &self.response,
+            response,
             key: params.seed.wrapping_mul(0xD1B5_4A32_D192_ED03)
                 ^ params.frame.wrapping_mul(0x8CB9_2BA7_2F3D_8DD7)
                 ^ 0x006e_6f69_7365,

@@ -44,11 +44,16 @@ pub(super) fn linear_from_encoded(e: f32) -> f32 {
 /// The camera's response as a table: [`bt709`] at `RESPONSE + 1` even steps
 /// of linear light over `[0, 1]` (read at the nearest step: at most 0.3 of an
 /// 8-bit level off, at the toe's slope of 4.5).
-pub(super) fn response_table() -> Vec<f32> {
-    (0..=RESPONSE)
-        .map(|i| bt709(i as f32 / RESPONSE as f32))
-        .collect()
+pub(super) fn response_table() -> Box<Response> {
+    let mut table = Box::new([0.0; RESPONSE + 1]);
+    for (i, v) in table.iter_mut().enumerate() {
+        *v = bt709(i as f32 / RESPONSE as f32);
+    }
+    table
 }
+
+/// [`response_table`]'s type: its size known, so reading it needs no bounds check.
+pub(super) type Response = [f32; RESPONSE + 1];
 
 /// The sensor model: gain, the camera's response, Gaussian noise from the table indexed by a
 /// counter-based hash (SplitMix64's finaliser; a Gaussian per pixel and
@@ -56,7 +61,7 @@ pub(super) fn response_table() -> Vec<f32> {
 pub(super) struct Sensor<'a> {
     pub(super) normals: &'a [f32],
     /// [`response_table`].
-    pub(super) response: &'a [f32],
+    pub(super) response: &'a Response,
     pub(super) key: u64,
     pub(super) gain: f32,
     pub(super) sigma: f32,
@@ -88,7 +93,7 @@ impl Sensor<'_> {
         // noise is on the encoded image (as the paper's augmentation is); the
         // values are ≥ 0 after the clamps, so adding ½ and truncating rounds
         let light = (v * self.gain).clamp(0.0, 1.0);
-        let encoded = self.response[(light * RESPONSE as f32 + 0.5) as usize];
+        let encoded = self.response[((light * RESPONSE as f32 + 0.5) as usize).min(RESPONSE)];
         ((encoded + noise).clamp(0.0, 1.0) * 255.0 + 0.5) as u8
     }
 
