@@ -13,33 +13,33 @@ use matrix::{Bench, Condition, Tissue, cases};
 /// `(condition, least ROI IoU, least distal IoU)`.
 // Measured over the working range (d = 8, 20, 35 mm), each case in the
 // region IBJAE reads at its pose (`WorkingRegions::full`), on frames encoded
-// by the camera's response (BT.709). The far poses (d = 35 mm) are the weak
-// ones; grey tissue is indistinguishable from steel by colour. A case where
-// the segmentation finds no instrument scores 0.
+// by the camera's response (BT.709), with the steel's colour as it shows
+// over tissue. The far poses (d = 35 mm) are the weak ones. A case where the
+// segmentation finds no instrument scores 0.
 const BOUNDS: [(Condition, f64, f64); 12] = [
-    (Condition::Baseline, 0.82, 0.68), // BELOW GOAL: 0.826 / 0.685 (median 0.957 / 0.934)
+    (Condition::Baseline, 0.79, 0.64), // BELOW GOAL: 0.799 / 0.642 (median 0.956 / 0.935)
     (Condition::Gain(0.4), 0.49, 0.26), // BELOW GOAL: 0.496 / 0.266
-    (Condition::Gain(1.6), 0.62, 0.48), // BELOW GOAL: 0.622 / 0.482
-    (Condition::Noise(0.1), 0.64, 0.49), // BELOW GOAL: 0.646 / 0.493
-    (Condition::Blur(3.0), 0.73, 0.58), // BELOW GOAL: 0.734 / 0.589
-    (Condition::Tint(0.25), 0.63, 0.41), // BELOW GOAL: 0.640 / 0.418
-    (Condition::Specular, 0.80, 0.65), // BELOW GOAL: 0.805 / 0.652
-    (Condition::Tissue(Tissue::Grey), 0.0, 0.0), // BELOW GOAL: 9 of 45 found empty (median 0.076 / 0.115)
-    (Condition::Tissue(Tissue::Pale), 0.0, 0.0), // BELOW GOAL: 1 of 45 found empty (median 0.870 / 0.865)
-    (Condition::Tissue(Tissue::White), 0.0, 0.0), // BELOW GOAL: 1 of 45 found empty (median 0.672 / 0.581)
-    (Condition::Tissue(Tissue::BlueGreen), 0.90, 0.85), // 0.948 / 0.917
+    (Condition::Gain(1.6), 0.60, 0.46), // BELOW GOAL: 0.603 / 0.462
+    (Condition::Noise(0.1), 0.64, 0.46), // BELOW GOAL: 0.647 / 0.461
+    (Condition::Blur(3.0), 0.71, 0.55), // BELOW GOAL: 0.714 / 0.556
+    (Condition::Tint(0.25), 0.73, 0.53), // BELOW GOAL: 0.731 / 0.538
+    (Condition::Specular, 0.77, 0.61), // BELOW GOAL: 0.778 / 0.613
+    (Condition::Tissue(Tissue::Grey), 0.20, 0.24), // BELOW GOAL: 0.206 / 0.247 (median 0.864 / 0.800)
+    (Condition::Tissue(Tissue::Pale), 0.02, 0.03), // BELOW GOAL: 0.023 / 0.034 (median 0.861 / 0.856)
+    (Condition::Tissue(Tissue::White), 0.32, 0.15), // BELOW GOAL: 0.325 / 0.151 (median 0.720 / 0.601)
+    (Condition::Tissue(Tissue::BlueGreen), 0.90, 0.85), // 0.949 / 0.922
     (Condition::Tissue(Tissue::Yellow), 0.90, 0.85), // 0.915 / 0.880
 ];
 
 /// Frames of the matrix the segmentation calls empty, at most, per tissue
-/// colour (BELOW GOAL: as measured, of 45; goal 0).
+/// colour (as measured, of 45; goal 0).
 const MOST_MISSED: [(Tissue, usize); 3] =
-    [(Tissue::Grey, 9), (Tissue::Pale, 1), (Tissue::White, 1)];
+    [(Tissue::Grey, 0), (Tissue::Pale, 0), (Tissue::White, 0)];
 
 /// Frames without the instrument that the segmentation calls instrument, at
-/// most, of the 36 tried (BELOW GOAL: 2 measured, wet colon folds in the
-/// region of (0°, 10 mm); goal 0).
-const MOST_FALSE_FOUND: usize = 2;
+/// most, of the 36 tried (BELOW GOAL: 6 measured, wet colon folds in the
+/// region of (0°, 10 mm) and white tissue read as steel; goal 0).
+const MOST_FALSE_FOUND: usize = 6;
 
 #[test]
 fn every_case_of_every_condition_meets_its_bound() {
