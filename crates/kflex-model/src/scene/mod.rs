@@ -25,6 +25,10 @@ use shading::{Surroundings, surface_colour, tape_band, under_tape};
 /// What a cached background depends on: kind, seed, width, height.
 type BackgroundKey = (Background, u64, u32, u32);
 
+/// What a region's encoded background depends on: the background, the camera
+/// (its vignetting), the region and the illumination gain (its bits).
+type EncodedKey = (BackgroundKey, Camera, Roi, u32);
+
 /// Tape over the instrument: a band covering `fraction` of the instrument's
 /// pixels inside a region of interest (what IBJAE sees), as the paper
 /// defines occlusion by the area the tape covers on the instrument it
@@ -181,6 +185,12 @@ pub struct SceneRenderer {
     working: Option<(Camera, Option<WorkingRegions>)>,
     /// Standard-normal samples; each frame reads them in a seeded pseudo-random order.
     normals: Vec<f32>,
+    /// Encoded background of the last sharp frame's region (see `render_window`).
+    encoded: Option<(EncodedKey, Vec<f32>)>,
+    /// Per pixel of the last shaded region: whether the instrument changed it.
+    shaded: Vec<u8>,
+    /// One row of encoded values.
+    row: Vec<f32>,
     /// The camera's response (`sensor::response_table`), once made.
     response: Option<Box<Response>>,
 }
@@ -275,14 +285,14 @@ impl SceneRenderer {
         if let Some(r) = params.occlusion.and_then(|o| o.region) {
             r.check_within(w, h)?;
         }
-        let key = (params.background, params.seed, w, h);
-        if self.cache.as_ref().map(|c| c.0) != Some(key) {
+        let key_bg = (params.background, params.seed, w, h);
+        if self.cache.as_ref().map(|c| c.0) != Some(key_bg) {
             // the tissue's look is made as the camera shows it; the scene
             // works in linear light, which the camera's response encodes
             let mut image = background::background(params.background, params.seed, w, h);
             image.iter_mut().for_each(|v| *v = linear_from_encoded(*v));
             let env = mean_colour(&image);
-            self.cache = Some((key, image, env));
+            self.cache = Some((key_bg, image, env));
         }
         let reach = if params.blur_px > 0.0 {
             (3.0 * params.blur_px).ceil() as u32
@@ -312,14 +322,6 @@ impl SceneRenderer {
             }
             self.vignetting = Some((key, table));
         }
-        if let Some((_, table)) = &self.vignetting {
-            for (px, &v) in img.chunks_exact_mut(3).zip(table) {
-                px.iter_mut().for_each(|c| *c *= v);
-            }
-        }
-        if params.blur_px > 0.0 {
-            gaussian_blur(&mut img, sw, sh, params.blur_px);
-        }
         if self.normals.is_empty() {
             self.normals = normal_table();
         }
@@ -333,20 +335,67 @@ impl SceneRenderer {
             gain: params.illumination_gain as f32,
             sigma: params.noise_std as f32,
         };
+        let vignetting = self.vignetting.as_ref().map_or(&[][..], |v| &v.1[..]);
+        let sharp = params.blur_px <= 0.0;
+        if sharp {
+            // without blur a background pixel's encoded value is the same
+            // every frame: kept per (background, camera, region, gain), so a
+            // frame encodes only the pixels the instrument changed
+            let bg_key = (key_bg, *camera, shaded_region, sensor.gain.to_bits());
+            if self.encoded.as_ref().map(|e| e.0) != Some(bg_key)
+                && let Some((_, image, _)) = self.cache.as_ref()
+            {
+                let mut encoded = Vec::with_capacity(3 * sw * sh);
+                for y in 0..sh {
+                    let start = 3
+                        * ((shaded_region.y0 as usize + y) * w as usize
+                            + shaded_region.x0 as usize);
+                    let row = &image[start..start + 3 * sw];
+                    for (px, &v) in row.chunks_exact(3).zip(&vignetting[y * sw..(y + 1) * sw]) {
+                        encoded.extend(px.iter().map(|&c| sensor.encode(c * v)));
+                    }
+                }
+                self.encoded = Some((bg_key, encoded));
+            }
+        } else {
+            // the lens's vignetting first, then the optics' blur
+            for (px, &v) in img.chunks_exact_mut(3).zip(vignetting) {
+                px.iter_mut().for_each(|c| *c *= v);
+            }
+            gaussian_blur(&mut img, sw, sh, params.blur_px);
+        }
         let (ww, wh) = (window.width as usize, window.height as usize);
         let mut rgb = vec![0u8; 3 * ww * wh];
         let mut instrument = vec![0u8; ww * wh];
         let mut occluder = vec![0u8; ww * wh];
         let work_w = work.width as usize;
+        let mut row = std::mem::take(&mut self.row);
         for y in 0..wh {
-            let (fy, sy) = (window.y0 as usize + y, window.y0 - shaded_region.y0);
-            let src = 3 * ((y + sy as usize) * sw + (window.x0 - shaded_region.x0) as usize);
-            let first = 3 * (fy * w as usize + window.x0 as usize);
-            sensor.span(
-                first,
-                &img[src..src + 3 * ww],
-                &mut rgb[3 * y * ww..3 * (y + 1) * ww],
+            let (fy, sy) = (
+                window.y0 as usize + y,
+                (window.y0 - shaded_region.y0) as usize,
             );
+            let sx = (window.x0 - shaded_region.x0) as usize;
+            let src = 3 * ((y + sy) * sw + sx);
+            let first = 3 * (fy * w as usize + window.x0 as usize);
+            row.clear();
+            match (&self.encoded, sharp) {
+                (Some((_, encoded)), true) => {
+                    row.extend_from_slice(&encoded[src..src + 3 * ww]);
+                    // the pixels the instrument changed, through the lens
+                    let p0 = (y + sy) * sw + sx;
+                    for x in 0..ww {
+                        if self.shaded.get(p0 + x).is_some_and(|&s| s != 0) {
+                            let v = vignetting.get(p0 + x).copied().unwrap_or(1.0);
+                            for c in 0..3 {
+                                row[3 * x + c] = sensor.encode(img[src + 3 * x + c] * v);
+                            }
+                        }
+                    }
+                }
+                _ => row.extend(img[src..src + 3 * ww].iter().map(|&v| sensor.encode(v))),
+            }
+            sensor.span_encoded(first, &row, &mut rgb[3 * y * ww..3 * (y + 1) * ww]);
             let wrow = (fy - work.y0 as usize) * work_w + (window.x0 - work.x0) as usize;
             for x in 0..ww {
                 if let Some(i) = self.inside[wrow + x].checked_sub(1) {
@@ -358,6 +407,7 @@ impl SceneRenderer {
                 }
             }
         }
+        self.row = row;
         Ok(Frame {
             width: window.width,
             height: window.height,
@@ -443,6 +493,8 @@ impl SceneRenderer {
         work: Roi,
         band: Option<(f32, f32)>,
     ) -> Vec<f32> {
+        self.shaded.clear();
+        self.shaded.resize(region.area() as usize, 0);
         let k = camera.intrinsics;
         let (w, h) = (k.width as usize, k.height as usize);
         let Some((_, background, mean)) = self.cache.as_ref() else {
@@ -463,6 +515,7 @@ impl SceneRenderer {
             raster,
             hits,
             inside,
+            shaded,
             ..
         } = self;
         let work_w = work.width as usize;
@@ -487,7 +540,11 @@ impl SceneRenderer {
                         .any(|&(nx, ny)| {
                             nx < w && ny < h && centre(nx, ny).is_some() != here.is_some()
                         });
-                        let o = 3 * ((y - region.y0 as usize) * rw + (x - region.x0 as usize));
+                        let p = (y - region.y0 as usize) * rw + (x - region.x0 as usize);
+                        let o = 3 * p;
+                        if edge || here.is_some() {
+                            shaded[p] = 1;
+                        }
                         if edge {
                             let bg = [img[o], img[o + 1], img[o + 2]];
                             let mut sum = [0.0f32; 3];

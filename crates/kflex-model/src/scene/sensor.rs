@@ -87,13 +87,19 @@ impl Sensor<'_> {
         self.sigma * self.normals[((bits >> (16 * lane)) & 0xFFFF) as usize]
     }
 
+    /// Linear light `v` as the camera encodes it: the gain, the sensor's
+    /// clipping, the camera's response.
     #[inline(always)]
-    fn quantise(&self, v: f32, noise: f32) -> u8 {
-        // linear light, clipped by the sensor, encoded by the camera; the
-        // noise is on the encoded image (as the paper's augmentation is); the
-        // values are ≥ 0 after the clamps, so adding ½ and truncating rounds
+    pub(super) fn encode(&self, v: f32) -> f32 {
         let light = (v * self.gain).clamp(0.0, 1.0);
-        let encoded = self.response[((light * RESPONSE as f32 + 0.5) as usize).min(RESPONSE)];
+        self.response[((light * RESPONSE as f32 + 0.5) as usize).min(RESPONSE)]
+    }
+
+    /// An encoded value with its noise, in 8 bits: the noise is on the encoded
+    /// image (as the paper's augmentation is); the value is ≥ 0 after the
+    /// clamp, so adding ½ and truncating rounds to nearest.
+    #[inline(always)]
+    fn quantise(encoded: f32, noise: f32) -> u8 {
         ((encoded + noise).clamp(0.0, 1.0) * 255.0 + 0.5) as u8
     }
 
@@ -105,25 +111,32 @@ impl Sensor<'_> {
         } else {
             0.0
         };
-        self.quantise(v, noise)
+        Self::quantise(self.encode(v), noise)
     }
 
     /// Values `first..first + values.len()` of the image as the sensor reads
     /// them, into `out`: `pixel(first + j, values[j])` for every `j`, each
     /// group of four values' random bits drawn once.
+    #[cfg(test)]
     pub(super) fn span(&self, first: usize, values: &[f32], out: &mut [u8]) {
+        let encoded: Vec<f32> = values.iter().map(|&v| self.encode(v)).collect();
+        self.span_encoded(first, &encoded, out);
+    }
+
+    /// [`Sensor::span`] of values already encoded ([`Sensor::encode`]).
+    pub(super) fn span_encoded(&self, first: usize, encoded: &[f32], out: &mut [u8]) {
         if self.sigma <= 0.0 {
-            for (o, &v) in out.iter_mut().zip(values) {
-                *o = self.quantise(v, 0.0);
+            for (o, &e) in out.iter_mut().zip(encoded) {
+                *o = Self::quantise(e, 0.0);
             }
             return;
         }
-        let n = out.len().min(values.len());
+        let n = out.len().min(encoded.len());
         // up to the first whole group of four, then whole groups, then the rest
         let head = ((4 - first % 4) % 4).min(n);
         let one = |j: usize| {
-            self.quantise(
-                values[j],
+            Self::quantise(
+                encoded[j],
                 self.noise(self.bits((first + j) / 4), (first + j) % 4),
             )
         };
@@ -131,14 +144,14 @@ impl Sensor<'_> {
             *o = one(j);
         }
         let whole = (n - head) / 4;
-        for (g, (o, v)) in out[head..head + 4 * whole]
+        for (g, (o, e)) in out[head..head + 4 * whole]
             .chunks_exact_mut(4)
-            .zip(values[head..head + 4 * whole].chunks_exact(4))
+            .zip(encoded[head..head + 4 * whole].chunks_exact(4))
             .enumerate()
         {
             let bits = self.bits((first + head) / 4 + g);
             for lane in 0..4 {
-                o[lane] = self.quantise(v[lane], self.noise(bits, lane));
+                o[lane] = Self::quantise(e[lane], self.noise(bits, lane));
             }
         }
         for (j, o) in out.iter_mut().enumerate().take(n).skip(head + 4 * whole) {
@@ -155,12 +168,12 @@ impl Sensor<'_> {
             for (g, (o, v)) in groups.by_ref().enumerate() {
                 let bits = self.bits(g);
                 for lane in 0..4 {
-                    o[lane] = self.quantise(v[lane], self.noise(bits, lane));
+                    o[lane] = Self::quantise(self.encode(v[lane]), self.noise(bits, lane));
                 }
             }
         } else {
             for (o, &v) in out.iter_mut().zip(values) {
-                *o = self.quantise(v, 0.0);
+                *o = Self::quantise(self.encode(v), 0.0);
             }
         }
         let tail = values.len() - values.len() % 4;
