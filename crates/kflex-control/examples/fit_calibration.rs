@@ -11,8 +11,11 @@
 //! plant without noise or spread, one run each, with the protocol of
 //! `kflex-cli run`.
 //!
-//! Five free parameters (`FREE`), each a physical quantity searched in log
-//! space inside its plausible range (written beside it): a seeded random
+//! Five free parameters (`free()`), each a physical quantity searched in log
+//! space inside its plausible range (written beside it): by default the
+//! shipped five; `KFLEX_FIT_FREE=mu,k,pretension,backlash,kphi` (short names
+//! of `CANDIDATES`, at most five) fits another choice, the others keeping
+//! their default values. Then a seeded random
 //! search, then Nelder–Mead from the best samples and from the shipped
 //! defaults. Every other parameter keeps its value from the instrument's
 //! dimensions or the literature (CALIBRATION.md gives the sources).
@@ -37,15 +40,18 @@ const WIDTH_TOL: [f64; 4] = [0.30, 0.30, 0.30, 0.40];
 
 /// A free parameter: its name, its plausible range, and where it lives in the config.
 struct Free {
+    /// Its name in `KFLEX_FIT_FREE`.
+    short: &'static str,
     name: &'static str,
     range: (f64, f64),
     get: fn(&PlantConfig) -> f64,
     set: fn(&mut PlantConfig, f64),
 }
 
-const FREE: [Free; 5] = [
+const CANDIDATES: [Free; 7] = [
     Free {
         // steel tendon in a coil sheath: PTFE-lined 0.05–0.2, unlined up to 0.3
+        short: "mu",
         name: "sheath.friction_coefficient",
         range: (0.05, 0.3),
         get: |c| c.sheath.friction_coefficient,
@@ -54,6 +60,7 @@ const FREE: [Free; 5] = [
     Free {
         // tendon (0.3 mm steel, 1.3 m: EA/L = 10.5 N/mm) in series with the coil
         // sheath's axial compliance: 2–15 N/mm
+        short: "k",
         name: "sheath.tendon_stiffness_n_per_mm",
         range: (2.0, 15.0),
         get: |c| c.sheath.tendon_stiffness_n_per_mm,
@@ -63,6 +70,7 @@ const FREE: [Free; 5] = [
         // path shortening of a tendon that takes the inside of its lumen as the
         // sheath bends: the radial clearance, 0.001–0.3 mm per radian of bend
         // (stored negative: the path shortens)
+        short: "path",
         name: "sheath.sheath_path_mm_per_rad (negated)",
         range: (0.001, 0.3),
         get: |c| (-c.sheath.sheath_path_mm_per_rad).max(0.001),
@@ -70,6 +78,7 @@ const FREE: [Free; 5] = [
     },
     Free {
         // gear and capstan play of a small differential drive: 0.01–0.3 mm of stroke
+        short: "backlash",
         name: "sheath.drive_backlash_mm",
         range: (0.01, 0.3),
         get: |c| c.sheath.drive_backlash_mm,
@@ -77,16 +86,55 @@ const FREE: [Free; 5] = [
     },
     Free {
         // bending stiffness of one rolling contact (springs, jacket): 5–300 N·mm/rad
+        short: "kphi",
         name: "joint.contact_stiffness_nmm_per_rad",
         range: (5.0, 300.0),
         get: |c| c.joint.contact_stiffness_nmm_per_rad,
         set: |c, v| c.joint.contact_stiffness_nmm_per_rad = v,
     },
+    Free {
+        // tendons of 0.3 mm steel wire rope (breaking load about 60 N) are
+        // pretensioned to 1–15 N in instruments of this size
+        short: "pretension",
+        name: "sheath.pretension_n",
+        range: (1.0, 15.0),
+        get: |c| c.sheath.pretension_n,
+        set: |c, v| c.sheath.pretension_n = v,
+    },
+    Free {
+        // pre-sliding displacement of steel on a polymer liner: 0.01–0.3 mm
+        short: "presliding",
+        name: "sheath.presliding_mm",
+        range: (0.01, 0.3),
+        get: |c| c.sheath.presliding_mm,
+        set: |c, v| c.sheath.presliding_mm = v,
+    },
 ];
+
+/// The parameters fitted: `KFLEX_FIT_FREE` (comma-separated short names of
+/// `CANDIDATES`, at most five), or the shipped choice.
+fn free() -> &'static [&'static Free] {
+    static CHOSEN: std::sync::OnceLock<Vec<&'static Free>> = std::sync::OnceLock::new();
+    CHOSEN.get_or_init(|| {
+        let names = std::env::var("KFLEX_FIT_FREE")
+            .unwrap_or_else(|_| "mu,k,path,backlash,kphi".to_string());
+        let chosen: Vec<&'static Free> = names
+            .split(',')
+            .map(|n| {
+                CANDIDATES
+                    .iter()
+                    .find(|c| c.short == n.trim())
+                    .unwrap_or_else(|| panic!("KFLEX_FIT_FREE: no parameter {n:?}"))
+            })
+            .collect();
+        assert!(chosen.len() <= 5, "KFLEX_FIT_FREE: at most five free parameters");
+        chosen
+    })
+}
 
 fn config(x: &[f64]) -> PlantConfig {
     let mut c = PlantConfig::default();
-    for (free, v) in FREE.iter().zip(x) {
+    for (free, v) in free().iter().zip(x) {
         (free.set)(&mut c, v.exp());
     }
     c
@@ -108,7 +156,7 @@ fn evaluate(plant: PlantConfig, sheaths: &[f64]) -> Option<Vec<GridRow>> {
 fn cost(x: &[f64], which: &[usize]) -> f64 {
     // the ranges are hard limits: a fit outside them is not a plausible instrument
     if x.iter()
-        .zip(&FREE)
+        .zip(free())
         .any(|(v, f)| *v < f.range.0.ln() || *v > f.range.1.ln())
     {
         return f64::INFINITY;
@@ -191,7 +239,7 @@ fn fit(which: &[usize], samples: usize, verbose: bool) -> (Vec<f64>, f64) {
     let mut rng = 2020u64;
     let mut pool: Vec<(Vec<f64>, f64)> = (0..samples)
         .map(|_| {
-            let x: Vec<f64> = FREE
+            let x: Vec<f64> = free()
                 .iter()
                 .map(|p| p.range.0.ln() + uniform(&mut rng) * (p.range.1.ln() - p.range.0.ln()))
                 .collect();
@@ -201,7 +249,7 @@ fn fit(which: &[usize], samples: usize, verbose: bool) -> (Vec<f64>, f64) {
         .collect();
     pool.sort_by(|a, b| a.1.total_cmp(&b.1));
     let d = PlantConfig::default();
-    let shipped: Vec<f64> = FREE.iter().map(|p| (p.get)(&d).ln()).collect();
+    let shipped: Vec<f64> = free().iter().map(|p| (p.get)(&d).ln()).collect();
     let shipped_cost = f(&shipped);
     if verbose {
         println!(
@@ -322,7 +370,7 @@ fn main() {
     let all = [0, 1, 2, 3];
     let (x, c) = fit(&all, samples, true);
     println!("\nfitted (cost {c:.5}):");
-    for (p, v) in FREE.iter().zip(&x) {
+    for (p, v) in free().iter().zip(&x) {
         let (lo, hi) = p.range;
         println!("  {} = {:.4}   (range {lo} – {hi})", p.name, v.exp());
     }
