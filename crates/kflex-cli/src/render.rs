@@ -7,7 +7,7 @@ use clap::Args;
 use kflex_estimate::{SegmentParams, segment};
 use kflex_model::{
     Background, Camera, FrameParams, Instrument, Intrinsics, Mask, Occlusion, Rasterizer,
-    SceneRenderer, WorkingRegions,
+    SceneRenderer, Tissue, WorkingRegions,
 };
 
 #[derive(Debug, Args)]
@@ -21,6 +21,9 @@ pub struct RenderArgs {
     /// Background: colon, stomach or larynx.
     #[arg(long, default_value = "colon")]
     background: String,
+    /// Tissue colour: organ (the background's own), grey, pale, white, blue_green or yellow.
+    #[arg(long, default_value = "organ")]
+    tissue: String,
     /// Share of the visible instrument covered by red tape (0 for none).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     occlusion: f64,
@@ -52,6 +55,7 @@ pub struct RenderArgs {
 
 pub fn render(args: &RenderArgs) -> Result<()> {
     let background: Background = args.background.parse()?;
+    let tissue: Tissue = args.tissue.parse()?;
     let intrinsics = if args.hd {
         Intrinsics::full_hd()
     } else {
@@ -63,6 +67,7 @@ pub fn render(args: &RenderArgs) -> Result<()> {
         (args.occlusion != 0.0).then_some(Occlusion::new(args.occlusion, args.occlusion_position));
     let params = FrameParams {
         background,
+        tissue,
         seed: args.seed,
         frame: args.frame,
         illumination_gain: args.gain,

@@ -211,6 +211,8 @@ fn render_writes_the_pngs_and_rejects_bad_input() {
         "10",
         "--background",
         "stomach",
+        "--tissue",
+        "yellow",
         "--occlusion",
         "0.4",
         "--out",
@@ -245,6 +247,7 @@ fn render_writes_the_pngs_and_rejects_bad_input() {
     assert_eq!(leftovers, 0);
     for (args, needle) in [
         (vec!["render", "--background", "gut", "--out", d], "gut"),
+        (vec!["render", "--tissue", "purple", "--out", d], "purple"),
         (vec!["render", "--theta", "150", "--out", d], "theta_deg"),
         (vec!["render", "--d", "-5", "--out", d], "translation_mm"),
         (

@@ -127,7 +127,10 @@ fn free() -> &'static [&'static Free] {
                     .unwrap_or_else(|| panic!("KFLEX_FIT_FREE: no parameter {n:?}"))
             })
             .collect();
-        assert!(chosen.len() <= 5, "KFLEX_FIT_FREE: at most five free parameters");
+        assert!(
+            chosen.len() <= 5,
+            "KFLEX_FIT_FREE: at most five free parameters"
+        );
         chosen
     })
 }

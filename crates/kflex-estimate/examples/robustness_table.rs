@@ -9,7 +9,8 @@ mod matrix;
 
 use kflex_estimate::{EstimateError, SegmentParams, Segmenter};
 use kflex_model::Background;
-use matrix::{Bench, Condition, Tissue, cases, min_median};
+use kflex_model::Tissue;
+use matrix::{Bench, Condition, cases, min_median};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut bench = Bench::default();
@@ -72,14 +73,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     println!();
     let mut false_found = Vec::new();
-    let tissues = [
-        None,
-        Some(Tissue::Pale),
-        Some(Tissue::BlueGreen),
-        Some(Tissue::Yellow),
-        Some(Tissue::Grey),
-        Some(Tissue::White),
-    ];
+    let tissues = Tissue::ALL;
     let mut total = 0;
     for background in Background::ALL {
         for tissue in tissues {

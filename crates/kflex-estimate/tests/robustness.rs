@@ -8,27 +8,29 @@ mod matrix;
 
 use kflex_estimate::{EstimateError, SegmentParams, Segmenter};
 use kflex_model::Background;
-use matrix::{Bench, Condition, Tissue, cases};
+use kflex_model::Tissue;
+use matrix::{Bench, Condition, cases};
 
 /// `(condition, least ROI IoU, least distal IoU)`.
 // Measured over the working range (d = 8, 20, 35 mm), each case in the
 // region IBJAE reads at its pose (`WorkingRegions::full`), on frames encoded
-// by the camera's response (BT.709), with the steel's colour as it shows
-// over tissue. The far poses (d = 35 mm) are the weak ones. A case where the
-// segmentation finds no instrument scores 0.
+// by the camera's response (BT.709), the threshold starting from the
+// steel's base colour. The far poses (d = 35 mm) are the weak ones. A case where the
+// segmentation finds no instrument scores 0. The tissue colours are rendered
+// in the scene (`FrameParams::tissue`), so the steel reflects them.
 const BOUNDS: [(Condition, f64, f64); 12] = [
-    (Condition::Baseline, 0.79, 0.64), // BELOW GOAL: 0.799 / 0.642 (median 0.956 / 0.935)
+    (Condition::Baseline, 0.82, 0.68), // BELOW GOAL: 0.826 / 0.685 (median 0.957 / 0.934)
     (Condition::Gain(0.4), 0.49, 0.26), // BELOW GOAL: 0.496 / 0.266
-    (Condition::Gain(1.6), 0.60, 0.46), // BELOW GOAL: 0.603 / 0.462
-    (Condition::Noise(0.1), 0.64, 0.46), // BELOW GOAL: 0.647 / 0.461
-    (Condition::Blur(3.0), 0.71, 0.55), // BELOW GOAL: 0.714 / 0.556
-    (Condition::Tint(0.25), 0.73, 0.53), // BELOW GOAL: 0.731 / 0.538
-    (Condition::Specular, 0.77, 0.61), // BELOW GOAL: 0.778 / 0.613
-    (Condition::Tissue(Tissue::Grey), 0.20, 0.24), // BELOW GOAL: 0.206 / 0.247 (median 0.864 / 0.800)
-    (Condition::Tissue(Tissue::Pale), 0.02, 0.03), // BELOW GOAL: 0.023 / 0.034 (median 0.861 / 0.856)
-    (Condition::Tissue(Tissue::White), 0.32, 0.15), // BELOW GOAL: 0.325 / 0.151 (median 0.720 / 0.601)
-    (Condition::Tissue(Tissue::BlueGreen), 0.90, 0.85), // 0.949 / 0.922
-    (Condition::Tissue(Tissue::Yellow), 0.90, 0.85), // 0.915 / 0.880
+    (Condition::Gain(1.6), 0.62, 0.48), // BELOW GOAL: 0.622 / 0.482
+    (Condition::Noise(0.1), 0.64, 0.49), // BELOW GOAL: 0.646 / 0.493
+    (Condition::Blur(3.0), 0.73, 0.58), // BELOW GOAL: 0.734 / 0.589
+    (Condition::Tint(0.25), 0.63, 0.41), // BELOW GOAL: 0.640 / 0.418
+    (Condition::Specular, 0.80, 0.65), // BELOW GOAL: 0.805 / 0.652
+    (Condition::Tissue(Tissue::Grey), 0.07, 0.11), // BELOW GOAL: 0.075 / 0.111 (median 0.901 / 0.862)
+    (Condition::Tissue(Tissue::Pale), 0.60, 0.50), // BELOW GOAL: 0.610 / 0.503 (median 0.909 / 0.889)
+    (Condition::Tissue(Tissue::White), 0.07, 0.09), // BELOW GOAL: 0.079 / 0.091 (median 0.883 / 0.843)
+    (Condition::Tissue(Tissue::BlueGreen), 0.90, 0.85), // 0.928 / 0.876
+    (Condition::Tissue(Tissue::Yellow), 0.90, 0.84), // BELOW GOAL: 0.903 / 0.846
 ];
 
 /// Frames of the matrix the segmentation calls empty, at most, per tissue
@@ -37,9 +39,9 @@ const MOST_MISSED: [(Tissue, usize); 3] =
     [(Tissue::Grey, 0), (Tissue::Pale, 0), (Tissue::White, 0)];
 
 /// Frames without the instrument that the segmentation calls instrument, at
-/// most, of the 36 tried (BELOW GOAL: 6 measured, wet colon folds in the
-/// region of (0°, 10 mm) and white tissue read as steel; goal 0).
-const MOST_FALSE_FOUND: usize = 6;
+/// most, of the 36 tried (BELOW GOAL: 3 measured, wet colon folds in the
+/// region of (0°, 10 mm), on the organ's, pale and white tissue; goal 0).
+const MOST_FALSE_FOUND: usize = 3;
 
 #[test]
 fn every_case_of_every_condition_meets_its_bound() {
@@ -72,14 +74,7 @@ fn no_instrument_only_when_there_is_none() {
     let roi = bench.roi;
     let mut false_found = Vec::new();
     for background in Background::ALL {
-        for tissue in [
-            None,
-            Some(Tissue::Pale),
-            Some(Tissue::BlueGreen),
-            Some(Tissue::Yellow),
-            Some(Tissue::Grey),
-            Some(Tissue::White),
-        ] {
+        for tissue in Tissue::ALL {
             for seed in 0..2 {
                 let f = bench.empty_frame(background, tissue, seed);
                 if let Ok(s) = segmenter.segment(&f.rgb, f.width, f.height, roi) {

@@ -9,7 +9,8 @@ use crate::range::{Num, RangeError};
 /// Variants carry the offending value and, where there is one, the range it
 /// had to be in as numbers ([`RangeError`]), so a caller can match on them and
 /// a person can act on the message without extra context. Building any
-/// variant but [`ModelError::UnknownBackground`] allocates nothing.
+/// variant but [`ModelError::UnknownBackground`] and
+/// [`ModelError::UnknownTissue`] allocates nothing.
 #[derive(Debug, Clone, PartialEq, Error)]
 #[non_exhaustive]
 pub enum ModelError {
@@ -60,6 +61,14 @@ pub enum ModelError {
     /// A background name that is not one of colon, stomach, larynx.
     #[error("unknown background {name:?}: expected colon, stomach or larynx")]
     UnknownBackground {
+        /// The name given.
+        name: String,
+    },
+    /// A tissue colour name that is not one of those of [`crate::Tissue`].
+    #[error(
+        "unknown tissue colour {name:?}: expected organ, grey, pale, white, blue_green or yellow"
+    )]
+    UnknownTissue {
         /// The name given.
         name: String,
     },

@@ -86,7 +86,7 @@ pub use range::MAX_IMAGE_SIDE;
 pub use range::{Bounds, RangeError};
 pub use raster::Rasterizer;
 pub use roi::Roi;
-pub use scene::{Background, Frame, FrameParams, Occlusion, SceneRenderer};
+pub use scene::{Background, Frame, FrameParams, Occlusion, SceneRenderer, Tissue};
 pub use trajectory::{Sample, Sine, Trajectory, TrajectorySampler};
 pub use transmission::{Distal, Seating, SheathParams, TendonSheath, TendonTensions};
 pub use working::{Banding, PoseRange, WorkingBand, WorkingRegions};

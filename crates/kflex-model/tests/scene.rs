@@ -372,3 +372,50 @@ fn central_tissue_is_exposed_neither_dark_nor_blown_out() {
         );
     }
 }
+
+/// A repainted tissue is part of the scene: the frame's tissue takes the
+/// colour, and the steel, which reflects the tissue, shifts toward it; one
+/// renderer switching colours gives what fresh renderers give (the cached
+/// background follows the colour).
+#[test]
+fn the_steel_reflects_the_tissue_colour_of_the_scene() {
+    use kflex_model::Tissue;
+    let shape = Instrument::kflex().shape(30.0, 10.0).unwrap();
+    let camera = Camera::default();
+    let mut shared = SceneRenderer::new();
+    // mean (blue − red) over the instrument's pixels and over the tissue's
+    let mut blue_minus_red = |tissue| {
+        let p = FrameParams {
+            tissue,
+            noise_std: 0.0,
+            ..FrameParams::default()
+        };
+        let f = shared.render(&camera, &shape, &p).unwrap();
+        let fresh = SceneRenderer::new().render(&camera, &shape, &p).unwrap();
+        assert_eq!(f.rgb, fresh.rgb, "{tissue:?}");
+        let (mut steel, mut ns, mut tissue_sum, mut nt) = (0.0, 0.0, 0.0, 0.0);
+        for (px, &m) in f.rgb.chunks_exact(3).zip(f.instrument.data()) {
+            let v = f64::from(px[2]) - f64::from(px[0]);
+            if m != 0 {
+                steel += v;
+                ns += 1.0;
+            } else {
+                tissue_sum += v;
+                nt += 1.0;
+            }
+        }
+        (steel / ns, tissue_sum / nt)
+    };
+    let (steel_organ, tissue_organ) = blue_minus_red(Tissue::Organ);
+    let (steel_green, tissue_green) = blue_minus_red(Tissue::BlueGreen);
+    let (steel_again, _) = blue_minus_red(Tissue::Organ);
+    assert_eq!(steel_again, steel_organ);
+    assert!(
+        tissue_organ < -20.0 && tissue_green > 10.0,
+        "{tissue_organ} {tissue_green}"
+    );
+    assert!(
+        steel_green > steel_organ + 2.0,
+        "the steel over blue-green tissue {steel_green:.2} vs over the colon {steel_organ:.2}"
+    );
+}

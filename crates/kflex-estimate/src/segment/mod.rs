@@ -27,11 +27,11 @@ pub struct SegmentParams {
     pub merge_distance: f32,
     /// The instrument's metal as chromaticity `[x, y]` (redness and green
     /// against blue over brightness, see [`Segmenter`]): where the threshold's
-    /// instrument class starts. The default is the K-FLEX steel as the camera
-    /// shows it in the organ scenes, `(0.58, 0.565, 0.58)`: its base colour
-    /// `(0.62, 0.64, 0.68)` is slightly blue, but the steel always reflects the
-    /// tissue around it, which moves it toward red (the mean of its pixels
-    /// over the robustness matrix's frames, x ≈ 0.006, y ≈ −0.008).
+    /// instrument class starts. The default is the K-FLEX steel's base colour
+    /// `(0.62, 0.64, 0.68)` as a BT.709 camera encodes it, `(0.787, 0.800,
+    /// 0.825)`: slightly blue. In a scene the steel also reflects the tissue
+    /// around it, which moves it toward the tissue's colour; the threshold
+    /// places its boundary between the two from each frame's statistics.
     pub metal_chroma: [f32; 2],
     /// Smallest brightness of an instrument region, as a share of the median
     /// brightness of the region of interest (darker is lumen or shadow).
@@ -53,7 +53,7 @@ impl Default for SegmentParams {
             split_range: 0.12,
             min_block: 2,
             merge_distance: 0.08,
-            metal_chroma: classify::chroma([0.58, 0.565, 0.58]),
+            metal_chroma: classify::chroma([0.787, 0.800, 0.825]),
             min_relative_value: 0.15,
             clip_value: 0.94,
             min_component: 0.004,

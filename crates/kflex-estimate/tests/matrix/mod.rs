@@ -8,7 +8,7 @@
 use kflex_estimate::{EstimateError, Segmenter};
 use kflex_model::{
     Background, Camera, Frame, FrameParams, Instrument, InstrumentShape, Mask, Part, Rasterizer,
-    Roi, SceneRenderer, WorkingRegions,
+    Roi, SceneRenderer, Tissue, WorkingRegions,
 };
 
 /// Bends of the matrix, deg.
@@ -18,21 +18,6 @@ pub const DS_MM: [f64; 3] = [8.0, 20.0, 35.0];
 /// Distal truth smaller than this (px in the region) is not scored: at d = 0
 /// little of the bend and gripper is out of the overtube.
 pub const MIN_DISTAL_PX: usize = 200;
-
-/// A tissue colour the test paints the background with, keeping its texture.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Tissue {
-    /// Neutral grey at the pixel's own luminance.
-    Grey,
-    /// The organ's own hue at 30 % of its saturation.
-    Pale,
-    /// Bright and nearly neutral.
-    White,
-    /// Blue-green (e.g. under narrow-band light, or a drape).
-    BlueGreen,
-    /// Yellow (fat, bile).
-    Yellow,
-}
 
 /// One perturbation of the frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -49,7 +34,7 @@ pub enum Condition {
     Tint(f64),
     /// Clipped-white streaks and blobs over tissue and over the instrument.
     Specular,
-    /// The background repainted.
+    /// The tissue repainted in the scene (the steel reflects it).
     Tissue(Tissue),
     /// The whole 8-bit frame multiplied by this factor.
     Dim(f64),
@@ -109,6 +94,7 @@ impl Condition {
                 ..base
             },
             Condition::Blur(b) => FrameParams { blur_px: b, ..base },
+            Condition::Tissue(tissue) => FrameParams { tissue, ..base },
             _ => base,
         }
     }
@@ -269,28 +255,18 @@ impl Bench {
         Ok(Score { roi: iou, distal })
     }
 
-    /// A frame of `background` without the instrument, its tissue repainted
-    /// `tissue` (if any), under `condition` otherwise.
-    pub fn empty_frame(
-        &mut self,
-        background: Background,
-        tissue: Option<Tissue>,
-        seed: u64,
-    ) -> Frame {
+    /// A frame of `background` without the instrument, its tissue coloured `tissue`.
+    pub fn empty_frame(&mut self, background: Background, tissue: Tissue, seed: u64) -> Frame {
         let shape = InstrumentShape::default();
         let params = FrameParams {
             background,
+            tissue,
             seed,
             ..FrameParams::default()
         };
-        let mut frame = self
-            .renderer
+        self.renderer
             .render(&self.camera, &shape, &params)
-            .expect("frame");
-        if let Some(t) = tissue {
-            perturb(&mut frame, self.roi, Condition::Tissue(t), seed | 1);
-        }
-        frame
+            .expect("frame")
     }
 }
 
@@ -322,26 +298,6 @@ fn perturb(frame: &mut Frame, roi: Roi, condition: Condition, seed: u64) {
                     for (c, &t) in rgb[3 * i..3 * i + 3].iter_mut().zip(&mean) {
                         *c = ((1.0 - share) * f64::from(*c) + share * t).round() as u8;
                     }
-                }
-            }
-        }
-        Condition::Tissue(kind) => {
-            for i in (0..w * h).filter(|&i| tissue(i)) {
-                let px = &mut rgb[3 * i..3 * i + 3];
-                let c = [0, 1, 2].map(|k| f64::from(px[k]));
-                let y = (c[0] + c[1] + c[2]) / 3.0;
-                let out = match kind {
-                    Tissue::Grey => [y; 3],
-                    Tissue::Pale => c.map(|v| y + 0.3 * (v - y)),
-                    Tissue::White => {
-                        let bright = 70.0 + 0.85 * y;
-                        c.map(|v| bright + 0.15 * (v - y))
-                    }
-                    Tissue::BlueGreen => [0.55 * y, 1.15 * y, 1.3 * y],
-                    Tissue::Yellow => [1.25 * y, 1.1 * y, 0.65 * y],
-                };
-                for (p, v) in px.iter_mut().zip(out) {
-                    *p = v.round().clamp(0.0, 255.0) as u8;
                 }
             }
         }
@@ -402,7 +358,11 @@ fn perturb(frame: &mut Frame, roi: Roi, condition: Condition, seed: u64) {
                 *c = (f64::from(*c) * f).round() as u8;
             }
         }
-        Condition::Baseline | Condition::Gain(_) | Condition::Noise(_) | Condition::Blur(_) => {}
+        Condition::Baseline
+        | Condition::Gain(_)
+        | Condition::Noise(_)
+        | Condition::Blur(_)
+        | Condition::Tissue(_) => {}
     }
     frame.rgb = rgb;
 }

@@ -46,6 +46,77 @@ impl FromStr for Background {
     }
 }
 
+/// The tissue's colour: the organ's own, or repainted with its texture,
+/// folds, vessels and lighting kept (tissue that differs from the printed
+/// organs: pale or anaemic mucosa, a white scar or fibrin, a drape or
+/// narrow-band light, fat or bile). It is applied to the scene, so the steel
+/// reflects the repainted tissue as it would in such a scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Tissue {
+    /// The background's own colours.
+    #[default]
+    Organ,
+    /// Neutral grey at each pixel's own brightness.
+    Grey,
+    /// The organ's hue at 30 % of its saturation.
+    Pale,
+    /// Bright and nearly neutral (15 % of the organ's saturation, lifted toward white).
+    White,
+    /// Blue-green at each pixel's brightness.
+    BlueGreen,
+    /// Yellow at each pixel's brightness.
+    Yellow,
+}
+
+impl Tissue {
+    /// All colours, the organ's own first.
+    pub const ALL: [Tissue; 6] = [
+        Tissue::Organ,
+        Tissue::Grey,
+        Tissue::Pale,
+        Tissue::White,
+        Tissue::BlueGreen,
+        Tissue::Yellow,
+    ];
+
+    /// Repaints one pixel of the background as the camera shows it
+    /// (encoded, `[0, 1]`), keeping its brightness `y` (the mean of its
+    /// channels) and, where the colour keeps any, its hue.
+    pub(super) fn paint(self, c: [f32; 3]) -> [f32; 3] {
+        let y = (c[0] + c[1] + c[2]) / 3.0;
+        let out = match self {
+            Tissue::Organ => c,
+            Tissue::Grey => [y; 3],
+            Tissue::Pale => c.map(|v| y + 0.3 * (v - y)),
+            Tissue::White => {
+                let bright = 70.0 / 255.0 + 0.85 * y;
+                c.map(|v| bright + 0.15 * (v - y))
+            }
+            Tissue::BlueGreen => [0.55 * y, 1.15 * y, 1.3 * y],
+            Tissue::Yellow => [1.25 * y, 1.1 * y, 0.65 * y],
+        };
+        out.map(|v| v.clamp(0.0, 1.0))
+    }
+}
+
+impl FromStr for Tissue {
+    type Err = ModelError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().replace('-', "_").as_str() {
+            "organ" => Ok(Tissue::Organ),
+            "grey" | "gray" => Ok(Tissue::Grey),
+            "pale" => Ok(Tissue::Pale),
+            "white" => Ok(Tissue::White),
+            "blue_green" | "bluegreen" => Ok(Tissue::BlueGreen),
+            "yellow" => Ok(Tissue::Yellow),
+            _ => Err(ModelError::UnknownTissue {
+                name: s.to_string(),
+            }),
+        }
+    }
+}
+
 /// One organ's surface model.
 enum Organ {
     Colon(Colon),
@@ -107,7 +178,7 @@ const VESSEL: [f32; 3] = [0.60, 0.34, 0.48];
 const SPECULAR: [f32; 3] = [1.0, 0.97, 0.93];
 
 /// The background texture, linear RGB f32 in [0, 1], row-major, 3 per pixel.
-pub(super) fn background(kind: Background, seed: u64, w: u32, h: u32) -> Vec<f32> {
+pub(super) fn background(kind: Background, tissue: Tissue, seed: u64, w: u32, h: u32) -> Vec<f32> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (kind as u64 * 0x1000_0001));
     let organ = match kind {
         Background::Colon => Organ::Colon(Colon::new(&mut rng, seed)),
@@ -144,6 +215,11 @@ pub(super) fn background(kind: Background, seed: u64, w: u32, h: u32) -> Vec<f32
         } else {
             0.0
         };
+    }
+    if tissue != Tissue::Organ {
+        for px in img.chunks_exact_mut(3) {
+            px.copy_from_slice(&tissue.paint([px[0], px[1], px[2]]));
+        }
     }
     img
 }
@@ -373,10 +449,10 @@ mod tests {
     #[test]
     fn backgrounds_are_finite_deterministic_and_seeded() {
         for kind in Background::ALL {
-            let a = background(kind, 5, 160, 120);
+            let a = background(kind, Tissue::Organ, 5, 160, 120);
             assert!(a.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
-            assert_eq!(a, background(kind, 5, 160, 120));
-            let b = background(kind, 6, 160, 120);
+            assert_eq!(a, background(kind, Tissue::Organ, 5, 160, 120));
+            let b = background(kind, Tissue::Organ, 6, 160, 120);
             let differ = a
                 .iter()
                 .zip(&b)
@@ -387,7 +463,7 @@ mod tests {
         // degenerate sizes do not panic
         for (w, h) in [(1, 1), (2, 1), (7, 9)] {
             assert_eq!(
-                background(Background::Larynx, 0, w, h).len(),
+                background(Background::Larynx, Tissue::Organ, 0, w, h).len(),
                 (3 * w * h) as usize
             );
         }
@@ -414,7 +490,13 @@ mod tests {
     #[test]
     fn the_colon_lumen_is_a_dark_hole_in_a_lit_wall() {
         for seed in 0..4 {
-            let l = luma(&background(Background::Colon, seed, 640, 480));
+            let l = luma(&background(
+                Background::Colon,
+                Tissue::Organ,
+                seed,
+                640,
+                480,
+            ));
             let (dark, mean) = darkest_block(&l, 640, 480);
             assert!(
                 dark < 0.12 * mean,
@@ -427,7 +509,13 @@ mod tests {
     /// the median) in the rows a quarter and three quarters down its length.
     fn glottis_widths(seed: u64) -> (usize, usize) {
         let (w, h) = (640, 480);
-        let l = luma(&background(Background::Larynx, seed, w as u32, h as u32));
+        let l = luma(&background(
+            Background::Larynx,
+            Tissue::Organ,
+            seed,
+            w as u32,
+            h as u32,
+        ));
         let mut sorted = l.clone();
         sorted.sort_by(f32::total_cmp);
         let dark = 0.2 * sorted[sorted.len() / 2];
@@ -453,7 +541,7 @@ mod tests {
     fn highlights_are_blobs_not_single_pixels() {
         let (w, h) = (640usize, 480usize);
         for kind in Background::ALL {
-            let img = background(kind, 3, w as u32, h as u32);
+            let img = background(kind, Tissue::Organ, 3, w as u32, h as u32);
             let bright: Vec<bool> = img
                 .chunks_exact(3)
                 .map(|p| p.iter().copied().fold(1.0f32, f32::min) > 0.8)
@@ -493,5 +581,58 @@ mod tests {
                 "{kind:?}: components {sizes:?}"
             );
         }
+    }
+
+    #[test]
+    fn a_repainted_tissue_keeps_its_texture_and_takes_its_colour() {
+        let organ = background(Background::Colon, Tissue::Organ, 2, 160, 120);
+        let mean = |img: &[f32]| {
+            let mut m = [0.0f64; 3];
+            for p in img.chunks_exact(3) {
+                for k in 0..3 {
+                    m[k] += f64::from(p[k]);
+                }
+            }
+            m.map(|v| v / (img.len() / 3) as f64)
+        };
+        let o = mean(&organ);
+        assert!(o[0] > o[2] + 0.1, "the colon is red: {o:?}");
+        for tissue in Tissue::ALL {
+            let img = background(Background::Colon, tissue, 2, 160, 120);
+            assert!(img.iter().all(|v| (0.0..=1.0).contains(v)), "{tissue:?}");
+            let (l0, l1) = (luma(&organ), luma(&img));
+            // the texture stays: brightness follows the organ's pixel for pixel
+            let n = l0.len() as f32;
+            let (m0, m1) = (l0.iter().sum::<f32>() / n, l1.iter().sum::<f32>() / n);
+            let cov: f32 = l0.iter().zip(&l1).map(|(a, b)| (a - m0) * (b - m1)).sum();
+            let v0: f32 = l0.iter().map(|a| (a - m0).powi(2)).sum();
+            let v1: f32 = l1.iter().map(|b| (b - m1).powi(2)).sum();
+            assert!(cov / (v0 * v1).sqrt() > 0.9, "{tissue:?}");
+            let c = mean(&img);
+            match tissue {
+                Tissue::Organ => assert_eq!(img, organ),
+                Tissue::Grey => assert!((c[0] - c[2]).abs() < 1e-3 && (c[0] - c[1]).abs() < 1e-3),
+                Tissue::Pale => assert!(c[0] - c[2] < 0.4 * (o[0] - o[2]) && c[0] > c[2]),
+                Tissue::White => assert!(c[1] > o[1] + 0.1 && c[0] - c[2] < 0.2 * (o[0] - o[2])),
+                Tissue::BlueGreen => assert!(c[2] > c[1] && c[1] > c[0]),
+                Tissue::Yellow => assert!(c[0] > c[1] && c[1] > c[2]),
+            }
+        }
+    }
+
+    #[test]
+    fn tissue_colours_parse_by_name() {
+        for (name, t) in [
+            ("organ", Tissue::Organ),
+            ("Grey", Tissue::Grey),
+            ("gray", Tissue::Grey),
+            ("blue-green", Tissue::BlueGreen),
+            ("blue_green", Tissue::BlueGreen),
+            ("yellow", Tissue::Yellow),
+        ] {
+            assert_eq!(name.parse::<Tissue>(), Ok(t));
+        }
+        let e = "purple".parse::<Tissue>().unwrap_err().to_string();
+        assert!(e.contains("purple") && e.contains("blue_green"), "{e}");
     }
 }

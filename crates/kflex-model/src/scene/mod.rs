@@ -18,12 +18,12 @@ use crate::range::Bounds;
 use crate::raster::{Rasterizer, SurfaceHit};
 use crate::roi::Roi;
 use crate::working::WorkingRegions;
-pub use background::Background;
+pub use background::{Background, Tissue};
 use sensor::{Response, Sensor, gaussian_blur, linear_from_encoded, normal_table, response_table};
 use shading::{Surroundings, surface_colour, tape_band, under_tape};
 
-/// What a cached background depends on: kind, seed, width, height.
-type BackgroundKey = (Background, u64, u32, u32);
+/// What a cached background depends on: kind, tissue colour, seed, width, height.
+type BackgroundKey = (Background, Tissue, u64, u32, u32);
 
 /// What a region's encoded background depends on: the background, the camera
 /// (its vignetting), the region and the illumination gain (its bits).
@@ -80,6 +80,8 @@ impl Occlusion {
 pub struct FrameParams {
     /// Background kind.
     pub background: Background,
+    /// The tissue's colour (the organ's own by default).
+    pub tissue: Tissue,
     /// Seed of the background and of the sensor noise.
     pub seed: u64,
     /// Frame number: fresh sensor noise over the same background, as from a
@@ -99,6 +101,7 @@ impl Default for FrameParams {
     fn default() -> Self {
         Self {
             background: Background::Colon,
+            tissue: Tissue::Organ,
             seed: 0,
             frame: 0,
             illumination_gain: 1.0,
@@ -285,11 +288,12 @@ impl SceneRenderer {
         if let Some(r) = params.occlusion.and_then(|o| o.region) {
             r.check_within(w, h)?;
         }
-        let key_bg = (params.background, params.seed, w, h);
+        let key_bg = (params.background, params.tissue, params.seed, w, h);
         if self.cache.as_ref().map(|c| c.0) != Some(key_bg) {
             // the tissue's look is made as the camera shows it; the scene
             // works in linear light, which the camera's response encodes
-            let mut image = background::background(params.background, params.seed, w, h);
+            let mut image =
+                background::background(params.background, params.tissue, params.seed, w, h);
             image.iter_mut().for_each(|v| *v = linear_from_encoded(*v));
             let env = mean_colour(&image);
             self.cache = Some((key_bg, image, env));
