@@ -121,16 +121,17 @@ fn free() -> &'static [&'static Free] {
         let chosen: Vec<&'static Free> = names
             .split(',')
             .map(|n| {
-                CANDIDATES
-                    .iter()
-                    .find(|c| c.short == n.trim())
-                    .unwrap_or_else(|| panic!("KFLEX_FIT_FREE: no parameter {n:?}"))
+                CANDIDATES.iter().find(|c| c.short == n.trim()).unwrap_or_else(|| {
+                    let known: Vec<&str> = CANDIDATES.iter().map(|c| c.short).collect();
+                    eprintln!("KFLEX_FIT_FREE: no parameter {n:?}; known: {}", known.join(","));
+                    std::process::exit(2)
+                })
             })
             .collect();
-        assert!(
-            chosen.len() <= 5,
-            "KFLEX_FIT_FREE: at most five free parameters"
-        );
+        if chosen.len() > 5 {
+            eprintln!("KFLEX_FIT_FREE: at most five free parameters, got {}", chosen.len());
+            std::process::exit(2);
+        }
         chosen
     })
 }
