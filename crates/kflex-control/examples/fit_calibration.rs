@@ -15,7 +15,8 @@
 //! space inside its plausible range (written beside it): by default the
 //! shipped five; `KFLEX_FIT_FREE=mu,k,pretension,backlash,kphi` (short names
 //! of `CANDIDATES`, at most five) fits another choice, the others keeping
-//! their default values. Then a seeded random
+//! their default values; `KFLEX_FIT_SET=kphi=5,path=0.01` sets candidates by
+//! hand first (for a fit, `eval` and `loops` alike). Then a seeded random
 //! search, then Nelder–Mead from the best samples and from the shipped
 //! defaults. Every other parameter keeps its value from the instrument's
 //! dimensions or the literature (CALIBRATION.md gives the sources).
@@ -48,7 +49,7 @@ struct Free {
     set: fn(&mut PlantConfig, f64),
 }
 
-const CANDIDATES: [Free; 7] = [
+const CANDIDATES: [Free; 8] = [
     Free {
         // steel tendon in a coil sheath: PTFE-lined 0.05–0.2, unlined up to 0.3
         short: "mu",
@@ -109,7 +110,41 @@ const CANDIDATES: [Free; 7] = [
         get: |c| c.sheath.presliding_mm,
         set: |c, v| c.sheath.presliding_mm = v,
     },
+    Free {
+        // R − B of Eq. 1, the arm of the pretension's straightening moment: set
+        // from the joint's geometry (1.8 mm), a candidate only to probe by hand
+        // (KFLEX_FIT_SET=rminusb=0.3); 0.05–2.9 mm for R = 3
+        short: "rminusb",
+        name: "geometry.r_mm - geometry.b_mm",
+        range: (0.05, 2.9),
+        get: |c| c.geometry.r_mm - c.geometry.b_mm,
+        set: |c, v| c.geometry.b_mm = c.geometry.r_mm - v,
+    },
 ];
+
+/// The plant every fit and table starts from: the shipped defaults, with the
+/// values `KFLEX_FIT_SET=name=value,…` names (short names of `CANDIDATES`)
+/// set first, to try a parameter by hand.
+fn base() -> PlantConfig {
+    let mut c = PlantConfig::default();
+    let Ok(set) = std::env::var("KFLEX_FIT_SET") else {
+        return c;
+    };
+    for item in set.split(',').filter(|s| !s.trim().is_empty()) {
+        let parsed = item.split_once('=').and_then(|(n, v)| {
+            let free = CANDIDATES.iter().find(|f| f.short == n.trim())?;
+            Some((free, v.trim().parse::<f64>().ok()?))
+        });
+        let Some((free, v)) = parsed else {
+            eprintln!(
+                "KFLEX_FIT_SET: cannot read {item:?} (want name=value, a name of CANDIDATES)"
+            );
+            std::process::exit(2)
+        };
+        (free.set)(&mut c, v);
+    }
+    c
+}
 
 /// The parameters fitted: `KFLEX_FIT_FREE` (comma-separated short names of
 /// `CANDIDATES`, at most five), or the shipped choice.
@@ -121,15 +156,24 @@ fn free() -> &'static [&'static Free] {
         let chosen: Vec<&'static Free> = names
             .split(',')
             .map(|n| {
-                CANDIDATES.iter().find(|c| c.short == n.trim()).unwrap_or_else(|| {
-                    let known: Vec<&str> = CANDIDATES.iter().map(|c| c.short).collect();
-                    eprintln!("KFLEX_FIT_FREE: no parameter {n:?}; known: {}", known.join(","));
-                    std::process::exit(2)
-                })
+                CANDIDATES
+                    .iter()
+                    .find(|c| c.short == n.trim())
+                    .unwrap_or_else(|| {
+                        let known: Vec<&str> = CANDIDATES.iter().map(|c| c.short).collect();
+                        eprintln!(
+                            "KFLEX_FIT_FREE: no parameter {n:?}; known: {}",
+                            known.join(",")
+                        );
+                        std::process::exit(2)
+                    })
             })
             .collect();
         if chosen.len() > 5 {
-            eprintln!("KFLEX_FIT_FREE: at most five free parameters, got {}", chosen.len());
+            eprintln!(
+                "KFLEX_FIT_FREE: at most five free parameters, got {}",
+                chosen.len()
+            );
             std::process::exit(2);
         }
         chosen
@@ -137,7 +181,7 @@ fn free() -> &'static [&'static Free] {
 }
 
 fn config(x: &[f64]) -> PlantConfig {
-    let mut c = PlantConfig::default();
+    let mut c = base();
     for (free, v) in free().iter().zip(x) {
         (free.set)(&mut c, v.exp());
     }
@@ -252,7 +296,7 @@ fn fit(which: &[usize], samples: usize, verbose: bool) -> (Vec<f64>, f64) {
         })
         .collect();
     pool.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let d = PlantConfig::default();
+    let d = base();
     let shipped: Vec<f64> = free().iter().map(|p| (p.get)(&d).ln()).collect();
     let shipped_cost = f(&shipped);
     if verbose {
@@ -335,7 +379,7 @@ fn write_loops(path: &str) -> std::io::Result<()> {
     for sheath_deg in SHEATHS {
         let config = PlantConfig {
             sheath_deg,
-            ..PlantConfig::default()
+            ..base()
         };
         let mut plant = kflex_model::Plant::new(config).map_err(std::io::Error::other)?;
         let trace = kflex_control::OpenLoopScenario::default()
@@ -358,7 +402,7 @@ fn write_loops(path: &str) -> std::io::Result<()> {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.first().map(String::as_str) == Some("eval") {
-        print_tables(PlantConfig::default());
+        print_tables(base());
         return;
     }
     if args.first().map(String::as_str) == Some("loops") {
