@@ -131,3 +131,42 @@ fn a_frame_after_the_first_allocates_nothing() {
         assert_eq!(n, 0, "allocations");
     }
 }
+
+#[test]
+fn fusion_steps_allocate_nothing_accepted_or_rejected() {
+    use kflex_estimate::{
+        AdaptiveKalman, AdaptiveParams, FilterRate, Fusion, KalmanParams, Measurements, PaperKalman,
+    };
+    let mut filters: Vec<Box<dyn Fusion>> = vec![
+        Box::new(PaperKalman::new(KalmanParams::default()).unwrap()),
+        Box::new(
+            PaperKalman::new(KalmanParams {
+                rate: FilterRate::AsWritten,
+                ..KalmanParams::default()
+            })
+            .unwrap(),
+        ),
+        Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap()),
+    ];
+    for f in &mut filters {
+        for k in 0..300 {
+            let theta = 25.0 * (f64::from(k) * 0.01).sin() + 25.0;
+            let m = Measurements {
+                kbjae_deg: Some(theta + 2.0),
+                // a camera frame every third tick, an outlier now and then
+                ibjae_deg: (k % 3 == 0).then_some(if k % 51 == 0 { 80.0 } else { theta }),
+                ibjae_sigma_deg: (k % 2 == 0).then_some(2.5),
+            };
+            let (e, n) = allocations(|| f.step(0.01, m));
+            assert!(e.unwrap().theta_hat_deg.is_finite());
+            assert_eq!(n, 0, "step {k} allocated");
+        }
+        let bad = Measurements {
+            kbjae_deg: Some(f64::NAN),
+            ..Measurements::default()
+        };
+        let (e, n) = allocations(|| f.step(0.01, bad));
+        assert!(e.is_err());
+        assert_eq!(n, 0, "a rejected step allocated");
+    }
+}

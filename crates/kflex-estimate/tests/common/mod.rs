@@ -1,0 +1,1 @@
+pub mod fusion_scenario;
