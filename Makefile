@@ -31,8 +31,11 @@ $(STAMP): requirements.txt
 build:
 	$(CARGO) build --release --locked -p kflex-cli
 
-test-rust:
-	$(CARGO) test --workspace --locked
+# kflex-estimate's `onnx` feature (ONNX Runtime, KBJAE) is tested too: its
+# tests load the runtime library from .venv, which `make test` creates first.
+RUST_TEST_FEATURES := --features kflex-estimate/onnx
+test-rust: venv
+	$(CARGO) test --workspace --locked $(RUST_TEST_FEATURES)
 
 # The crates a controller embeds, as it builds them: without default features
 # (no rapier3d, parry3d or image; see ARCHITECTURE.md).
@@ -45,7 +48,7 @@ test-python: venv
 
 lint:
 	$(CARGO) fmt --all --check
-	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
+	$(CARGO) clippy --workspace --all-targets --locked $(RUST_TEST_FEATURES) -- -D warnings
 	$(CARGO) clippy $(EMBEDDED) --all-targets --locked --no-default-features -- -D warnings
 
 fmt:

@@ -38,6 +38,62 @@ pub enum EstimateError {
         /// Bytes given.
         got: usize,
     },
+    /// The ONNX Runtime library was found nowhere kflex looks.
+    #[error(
+        "ONNX Runtime library not found (looked at: {searched}); install the pinned wheel with `make venv` (or `pip install onnxruntime==1.31.1` into the active Python), or set ORT_DYLIB_PATH to its libonnxruntime.so.1.31.1"
+    )]
+    OnnxRuntimeMissing {
+        /// Every place looked at, in order.
+        searched: String,
+    },
+    /// ONNX Runtime failed on a model (loading, or running it).
+    #[error("ONNX Runtime, {path}: {message}")]
+    Onnx {
+        /// The model file (or the runtime library).
+        path: String,
+        /// What ONNX Runtime said.
+        message: String,
+    },
+    /// A model or model-card file that cannot be read or understood.
+    #[error("{path}: {message}")]
+    ModelFile {
+        /// The file.
+        path: String,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// A model whose file is not the one its model card records.
+    #[error("{path}: SHA-256 {file} does not match its model card's {card}")]
+    ModelChecksum {
+        /// The model file.
+        path: String,
+        /// The SHA-256 its card records.
+        card: String,
+        /// The SHA-256 of the file.
+        file: String,
+    },
+    /// A model whose input or output is not what the estimator expects.
+    #[error("{path}: {which} is {found}, expected {expected}")]
+    ModelMismatch {
+        /// The model file.
+        path: String,
+        /// `input` or `output`.
+        which: &'static str,
+        /// What the estimator expects (name, element type, shape; -1 dynamic).
+        expected: String,
+        /// What the model has.
+        found: String,
+    },
+    /// A buffer whose length does not fit the batch.
+    #[error("{what}: {got} values given, {expected} expected")]
+    BufferSize {
+        /// Which buffer.
+        what: &'static str,
+        /// Values expected.
+        expected: usize,
+        /// Values given.
+        got: usize,
+    },
 }
 
 impl EstimateError {

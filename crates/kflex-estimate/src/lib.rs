@@ -5,9 +5,11 @@
 //! into the 48×48 binary image the Siamese CNN consumes ([`Segmenter`], and
 //! the one-off [`segment()`]), and the Kalman fusion of the two estimators
 //! (LBHJAE: the paper's filter [`PaperKalman`] and the adaptive
-//! [`AdaptiveKalman`], both behind [`Fusion`]). KBJAE and IBJAE's retrieval
-//! come with the estimation issue, ONNX Runtime and the k-d index behind
-//! cargo features of their own.
+//! [`AdaptiveKalman`], both behind [`Fusion`]). With the cargo feature
+//! `onnx`: ONNX Runtime ([`onnx`]: the runtime library found without the
+//! user's help, models checked against their cards and the shapes an
+//! estimator expects) and KBJAE (`Kbjae`, the MLP on the command and its
+//! rate). IBJAE's embedding and retrieval come with the estimation issue.
 //!
 //! ## Fusion
 //!
@@ -57,6 +59,10 @@
 
 mod error;
 mod fusion;
+#[cfg(feature = "onnx")]
+mod kbjae;
+#[cfg(feature = "onnx")]
+pub mod onnx;
 mod segment;
 
 pub use error::{EstimateError, Result};
@@ -64,6 +70,8 @@ pub use fusion::{
     AdaptiveKalman, AdaptiveParams, Estimate, FilterRate, Fusion, KalmanParams, Measurements,
     PaperKalman, SensorUse,
 };
+#[cfg(feature = "onnx")]
+pub use kbjae::{CommandRate, KBJAE_INPUT, KBJAE_OUTPUT, Kbjae};
 /// The shared types this crate's API takes and returns.
 pub use kflex_model::{Bounds, Mask, RangeError, Roi};
 pub use segment::{SegmentParams, Segmentation, Segmenter, segment};

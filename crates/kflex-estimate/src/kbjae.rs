@@ -1,0 +1,168 @@
+//! KBJAE: the kinematic-based joint angle estimator (the paper's Section
+//! II-C-2): an MLP that predicts the hysteresis error `θ̃` from the command
+//! and its rate, so `θ = θ_c + θ̃` (cargo feature `onnx`).
+
+use std::path::Path;
+
+use kflex_model::{Bounds, ModelError};
+
+use crate::error::Result;
+use crate::onnx::{OnnxModel, TensorSpec};
+
+/// KBJAE's model input: `[batch, 2]` of (θ deg, θ' deg/s), `f32`; the
+/// training script bakes its input scaling into the graph.
+pub const KBJAE_INPUT: TensorSpec = TensorSpec {
+    name: "theta_and_rate",
+    shape: &[-1, 2],
+};
+
+/// KBJAE's model output: `[batch, 1]` of the predicted error `θ̃`, deg.
+pub const KBJAE_OUTPUT: TensorSpec = TensorSpec {
+    name: "theta_error",
+    shape: &[-1, 1],
+};
+
+/// The rate of the command stream: a backward difference over each tick's
+/// own `dt`, 0 on the first tick (no history), so irregular ticks give the
+/// right rate. KBJAE was trained on `(θ_d, θ_d')` sampled from smooth
+/// periodic signals; this is the derivative those samples stand for.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CommandRate {
+    last_deg: Option<f64>,
+}
+
+impl CommandRate {
+    /// A differentiator with no history.
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The rate after a tick of `dt_s` that ends at `theta_deg`, deg/s.
+    ///
+    /// # Errors
+    /// [`crate::EstimateError::Model`] for a non-finite angle, or `dt_s`
+    /// outside `(0, 3600]` s; the history is then unchanged.
+    pub fn step(&mut self, theta_deg: f64, dt_s: f64) -> Result<f64> {
+        if !theta_deg.is_finite() {
+            return Err(ModelError::NonFinite {
+                name: "theta_c_deg",
+                value: theta_deg,
+            }
+            .into());
+        }
+        Bounds::open_closed(0.0, 3600.0).check("dt_s", dt_s)?;
+        let rate = self.last_deg.map_or(0.0, |last| (theta_deg - last) / dt_s);
+        self.last_deg = Some(theta_deg);
+        Ok(rate)
+    }
+
+    /// Forgets the history (the next tick's rate is 0).
+    pub fn reset(&mut self) {
+        self.last_deg = None;
+    }
+}
+
+/// KBJAE: `θ̂ = θ + θ̃(θ, θ')` with `θ̃` from the MLP (Table II).
+///
+/// Its input is the command **actually sent to the plant**, `θ_c`, not the
+/// master's `θ_d`: the MLP learned how the joint lags the command its
+/// motors receive (open loop, where `θ_c = θ_d`), and once the compensator
+/// adds to the command, the joint follows `θ_c`, not `θ_d`.
+#[derive(Debug)]
+pub struct Kbjae {
+    model: OnnxModel,
+    rate: CommandRate,
+}
+
+impl Kbjae {
+    /// Loads KBJAE's ONNX model (see [`KBJAE_INPUT`], [`KBJAE_OUTPUT`]) for
+    /// batch-1 latency on one thread.
+    ///
+    /// # Errors
+    /// As [`OnnxModel::load`].
+    pub fn load(path: &Path) -> Result<Self> {
+        Ok(Self {
+            model: OnnxModel::load(path, KBJAE_INPUT, KBJAE_OUTPUT, 1)?,
+            rate: CommandRate::new(),
+        })
+    }
+
+    /// The model file's SHA-256.
+    #[must_use]
+    pub fn sha256(&self) -> &str {
+        self.model.sha256()
+    }
+
+    /// One tick: the command `theta_c_deg` sent this tick, `dt_s` after the
+    /// last; returns KBJAE's angle `θ_c + θ̃(θ_c, θ_c')`, deg.
+    ///
+    /// # Errors
+    /// As [`CommandRate::step`] (the estimator is then unchanged), or
+    /// [`crate::EstimateError::Onnx`] when the model fails.
+    pub fn step(&mut self, theta_c_deg: f64, dt_s: f64) -> Result<f64> {
+        let mut rate = self.rate;
+        let theta_rate = rate.step(theta_c_deg, dt_s)?;
+        let angle = self.predict(theta_c_deg, theta_rate)?;
+        self.rate = rate;
+        Ok(angle)
+    }
+
+    /// KBJAE's angle for a command and its rate, deg (no history kept).
+    ///
+    /// # Errors
+    /// [`crate::EstimateError::Model`] for a non-finite input;
+    /// [`crate::EstimateError::Onnx`] when the model fails.
+    pub fn predict(&mut self, theta_deg: f64, rate_deg_per_s: f64) -> Result<f64> {
+        for (name, value) in [("theta_deg", theta_deg), ("rate_deg_per_s", rate_deg_per_s)] {
+            if !value.is_finite() {
+                return Err(ModelError::NonFinite { name, value }.into());
+            }
+        }
+        let mut error = [0.0f32];
+        self.model
+            .run(&[theta_deg as f32, rate_deg_per_s as f32], 1, &mut error)?;
+        Ok(theta_deg + f64::from(error[0]))
+    }
+
+    /// The predicted errors `θ̃` for many (θ, θ') pairs at once, deg
+    /// (throughput: one model call).
+    ///
+    /// # Errors
+    /// [`crate::EstimateError::BufferSize`] when the slices differ in length;
+    /// [`crate::EstimateError::Model`] for a non-finite input;
+    /// [`crate::EstimateError::Onnx`] when the model fails.
+    pub fn errors(&mut self, theta_deg: &[f32], rate_deg_per_s: &[f32]) -> Result<Vec<f32>> {
+        if theta_deg.len() != rate_deg_per_s.len() {
+            return Err(crate::EstimateError::BufferSize {
+                what: "rates",
+                expected: theta_deg.len(),
+                got: rate_deg_per_s.len(),
+            });
+        }
+        let mut input = Vec::with_capacity(2 * theta_deg.len());
+        for (&t, &r) in theta_deg.iter().zip(rate_deg_per_s) {
+            if !(t.is_finite() && r.is_finite()) {
+                let (name, value) = if t.is_finite() {
+                    ("rate_deg_per_s", r)
+                } else {
+                    ("theta_deg", t)
+                };
+                return Err(ModelError::NonFinite {
+                    name,
+                    value: f64::from(value),
+                }
+                .into());
+            }
+            input.extend([t, r]);
+        }
+        let mut out = vec![0.0f32; theta_deg.len()];
+        self.model.run(&input, theta_deg.len(), &mut out)?;
+        Ok(out)
+    }
+
+    /// Forgets the command history.
+    pub fn reset(&mut self) {
+        self.rate.reset();
+    }
+}

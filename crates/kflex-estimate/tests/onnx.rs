@@ -1,0 +1,190 @@
+//! ONNX Runtime and KBJAE on the small test models of
+//! `tools/make_test_models.py` (the trained models come with issue 10).
+//! Needs the runtime library: `make venv` installs it into `.venv`.
+#![cfg(feature = "onnx")]
+
+use std::path::{Path, PathBuf};
+
+use kflex_estimate::onnx::{OnnxModel, onnxruntime_library};
+use kflex_estimate::{CommandRate, EstimateError, KBJAE_INPUT, KBJAE_OUTPUT, Kbjae};
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name)
+}
+
+/// A fresh folder of this test's own under the system's temporary directory.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("kflex-onnx-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn expected() -> (Vec<[f64; 2]>, Vec<f64>) {
+    let text = std::fs::read_to_string(data("kbjae_test.expected.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let inputs = v["inputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()])
+        .collect();
+    let out = v["theta_error"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    (inputs, out)
+}
+
+#[test]
+fn the_runtime_library_is_found_in_the_projects_venv() {
+    let lib = onnxruntime_library().expect("make venv installs onnxruntime");
+    let name = lib.file_name().unwrap().to_string_lossy().to_string();
+    assert!(name.starts_with("libonnxruntime.so"), "{}", lib.display());
+}
+
+#[test]
+fn kbjae_gives_the_networks_output_one_at_a_time_and_batched() {
+    let (inputs, want) = expected();
+    let mut k = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    assert_eq!(k.sha256().len(), 64);
+    for (x, w) in inputs.iter().zip(&want) {
+        let got = k.predict(x[0], x[1]).unwrap() - x[0];
+        // the network runs in f32: its error is a few f32 ulps of its size
+        assert!(
+            (got - w).abs() <= 1e-5 * (1.0 + w.abs()),
+            "{x:?}: {got} against {w}"
+        );
+    }
+    let theta: Vec<f32> = inputs.iter().map(|x| x[0] as f32).collect();
+    let rate: Vec<f32> = inputs.iter().map(|x| x[1] as f32).collect();
+    let batch = k.errors(&theta, &rate).unwrap();
+    for (g, w) in batch.iter().zip(&want) {
+        assert!(
+            (f64::from(*g) - w).abs() <= 1e-5 * (1.0 + w.abs()),
+            "{g} against {w}"
+        );
+    }
+    assert!(matches!(
+        k.errors(&theta, &rate[1..]),
+        Err(EstimateError::BufferSize { .. })
+    ));
+}
+
+#[test]
+fn kbjae_differentiates_the_command_stream() {
+    let mut k = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    let mut probe = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    // first tick: no history, rate 0
+    assert_eq!(
+        k.step(10.0, 0.01).unwrap(),
+        probe.predict(10.0, 0.0).unwrap()
+    );
+    // an irregular tick: the rate over its own dt
+    assert_eq!(
+        k.step(10.5, 0.02).unwrap(),
+        probe.predict(10.5, 25.0).unwrap()
+    );
+    // a rejected tick changes nothing
+    assert!(k.step(f64::NAN, 0.01).is_err());
+    assert!(k.step(11.0, 0.0).is_err());
+    assert_eq!(
+        k.step(11.0, 0.01).unwrap(),
+        probe.predict(11.0, 50.0).unwrap()
+    );
+    k.reset();
+    assert_eq!(k.step(3.0, 0.01).unwrap(), probe.predict(3.0, 0.0).unwrap());
+    let mut r = CommandRate::new();
+    assert_eq!(r.step(1.0, 0.1).unwrap(), 0.0);
+    assert!((r.step(2.0, 0.1).unwrap() - 10.0).abs() < 1e-12);
+}
+
+#[test]
+fn a_model_with_other_names_is_refused_naming_both() {
+    let e = Kbjae::load(&data("renamed_test.onnx")).unwrap_err();
+    let EstimateError::ModelMismatch {
+        which,
+        expected,
+        found,
+        ..
+    } = &e
+    else {
+        panic!("{e}");
+    };
+    assert_eq!(*which, "input");
+    assert!(
+        expected.contains("theta_and_rate") && found.starts_with("x "),
+        "{e}"
+    );
+    // the same file is fine where its names are expected
+    let spec = kflex_estimate::onnx::TensorSpec {
+        name: "x",
+        shape: &[-1, 2],
+    };
+    let mut m = OnnxModel::load(&data("renamed_test.onnx"), spec, KBJAE_OUTPUT, 1).unwrap();
+    let mut out = [0.0f32; 2];
+    m.run(&[25.0, 0.0, 30.0, 5.0], 2, &mut out).unwrap();
+    assert!(matches!(
+        m.run(&[25.0, 0.0, 30.0], 2, &mut out),
+        Err(EstimateError::BufferSize { .. })
+    ));
+}
+
+#[test]
+fn a_model_that_is_not_what_its_card_says_is_refused() {
+    let dir = scratch("card");
+    let model = dir.join("kbjae.onnx");
+    std::fs::copy(data("kbjae_test.onnx"), &model).unwrap();
+    // no card: loads
+    Kbjae::load(&model).unwrap();
+    std::fs::write(dir.join("kbjae.card.json"), r#"{"sha256": "00ff"}"#).unwrap();
+    let e = Kbjae::load(&model).unwrap_err();
+    assert!(
+        matches!(&e, EstimateError::ModelChecksum { card, .. } if card == "00ff"),
+        "{e}"
+    );
+    std::fs::write(dir.join("kbjae.card.json"), "not json").unwrap();
+    assert!(matches!(
+        Kbjae::load(&model),
+        Err(EstimateError::ModelFile { .. })
+    ));
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn missing_truncated_and_corrupt_models_are_errors_not_panics() {
+    let dir = scratch("bad");
+    assert!(matches!(
+        Kbjae::load(&dir.join("nothing.onnx")),
+        Err(EstimateError::ModelFile { .. })
+    ));
+    let bytes = std::fs::read(data("kbjae_test.onnx")).unwrap();
+    let cases: [(&str, Vec<u8>); 4] = [
+        ("empty", Vec::new()),
+        ("truncated", bytes[..bytes.len() / 2].to_vec()),
+        (
+            "garbage",
+            (0..2000u32).map(|i| (i * 7919 % 251) as u8).collect(),
+        ),
+        ("flipped", {
+            let mut b = bytes.clone();
+            for i in (0..b.len()).step_by(37) {
+                b[i] ^= 0x5a;
+            }
+            b
+        }),
+    ];
+    for (name, content) in cases {
+        let path = dir.join(format!("{name}.onnx"));
+        std::fs::write(&path, content).unwrap();
+        match OnnxModel::load(&path, KBJAE_INPUT, KBJAE_OUTPUT, 1) {
+            Err(EstimateError::Onnx { .. } | EstimateError::ModelMismatch { .. }) => {}
+            other => panic!("{name}: {other:?}"),
+        }
+    }
+    std::fs::remove_dir_all(dir).unwrap();
+}
