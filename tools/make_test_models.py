@@ -11,6 +11,11 @@ built here with the `onnx` package, with weights from a fixed seed:
   and `kbjae_test.expected.json`: inputs and numpy's float64 outputs.
 * `renamed_test.onnx`: the same network with its input named `x`, for the
   name check.
+* `scnn_test.onnx`: the SCNN's contract (input `silhouette` [N, 1, 48, 48],
+  1 for instrument and 0 for background; output `embedding` [N, 256] in
+  (0, 1)) with a small body: Conv 5x5 (2 filters, padding 2), ReLU, 8x8
+  average pooling, a fully connected layer to 256 and a sigmoid. Beside it
+  `scnn_test.expected.json`: four masks and numpy's float64 embeddings.
 
 Usage:
     .venv/bin/python tools/make_test_models.py            # write the files
@@ -97,6 +102,67 @@ def inputs() -> np.ndarray:
     return np.stack([theta, rate], axis=1)
 
 
+def scnn_weights(seed: int = 2) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return [
+        rng.normal(0.0, 0.3, (2, 1, 5, 5)).astype(np.float32),
+        rng.normal(0.0, 0.1, 2).astype(np.float32),
+        rng.normal(0.0, 0.5, (72, 256)).astype(np.float32),
+        rng.normal(0.0, 0.1, 256).astype(np.float32),
+    ]
+
+
+def scnn_reference(masks: np.ndarray, w: list[np.ndarray]) -> np.ndarray:
+    """The SCNN test network in float64: masks [N, 48, 48] -> [N, 256]."""
+    k, kb, fc, fb = (a.astype(np.float64) for a in w)
+    n = len(masks)
+    padded = np.pad(masks.astype(np.float64), ((0, 0), (2, 2), (2, 2)))
+    conv = np.zeros((n, 2, 48, 48))
+    for c in range(2):
+        for dy in range(5):
+            for dx in range(5):
+                conv[:, c] += k[c, 0, dy, dx] * padded[:, dy:dy + 48, dx:dx + 48]
+        conv[:, c] += kb[c]
+    act = np.maximum(conv, 0.0)
+    pooled = act.reshape(n, 2, 6, 8, 6, 8).mean(axis=(3, 5))
+    z = pooled.reshape(n, 72) @ fc + fb
+    return 1.0 / (1.0 + np.exp(-z))
+
+
+def scnn_model(w: list[np.ndarray]) -> onnx.ModelProto:
+    inits = [numpy_helper.from_array(a, n) for a, n in zip(w, ["k", "kb", "fc", "fb"])]
+    nodes = [
+        helper.make_node("Conv", ["silhouette", "k", "kb"], ["c"], kernel_shape=[5, 5], pads=[2, 2, 2, 2]),
+        helper.make_node("Relu", ["c"], ["r"]),
+        helper.make_node("AveragePool", ["r"], ["p"], kernel_shape=[8, 8], strides=[8, 8]),
+        helper.make_node("Flatten", ["p"], ["f"], axis=1),
+        helper.make_node("Gemm", ["f", "fc", "fb"], ["z"]),
+        helper.make_node("Sigmoid", ["z"], ["embedding"]),
+    ]
+    graph = helper.make_graph(
+        nodes,
+        "scnn_test",
+        [helper.make_tensor_value_info("silhouette", TensorProto.FLOAT, ["batch", 1, 48, 48])],
+        [helper.make_tensor_value_info("embedding", TensorProto.FLOAT, ["batch", 256])],
+        inits,
+    )
+    m = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], producer_name="kflex tools")
+    m.ir_version = 8
+    onnx.checker.check_model(m)
+    return m
+
+
+def scnn_masks() -> np.ndarray:
+    """Four 48x48 silhouettes: a bar bent by different angles, and an empty one."""
+    yy, xx = np.mgrid[0:48, 0:48]
+    masks = []
+    for bend in (0.0, 0.4, 0.9):
+        centre = 24 + bend * (yy - 24) ** 2 / 24
+        masks.append((np.abs(xx - centre) < 4) & (yy > 6))
+    masks.append(np.zeros((48, 48), dtype=bool))
+    return np.array(masks, dtype=np.uint8)
+
+
 def write(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
     w = weights()
@@ -113,6 +179,18 @@ def write(out: Path) -> None:
     x = inputs()
     expected = {"inputs": x.tolist(), "theta_error": reference(x, w)[:, 0].tolist()}
     (out / "kbjae_test.expected.json").write_text(json.dumps(expected, indent=1) + "\n")
+    sw = scnn_weights()
+    data = scnn_model(sw).SerializeToString()
+    path = out / "scnn_test.onnx"
+    tmp = path.with_suffix(".tmp")
+    tmp.write_bytes(data)
+    tmp.replace(path)
+    masks = scnn_masks()
+    expected = {
+        "masks": ["".join(str(v) for v in m.ravel()) for m in masks],
+        "embedding": scnn_reference(masks, sw).tolist(),
+    }
+    (out / "scnn_test.expected.json").write_text(json.dumps(expected) + "\n")
 
 
 def main() -> int:

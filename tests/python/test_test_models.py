@@ -45,3 +45,14 @@ def test_regenerating_gives_the_stored_reference(tmp_path) -> None:
     fresh = json.loads((tmp_path / "kbjae_test.expected.json").read_text())
     assert fresh == stored_expected()
     assert (tmp_path / "renamed_test.onnx").is_file()
+    scnn = json.loads((tmp_path / "scnn_test.expected.json").read_text())
+    assert scnn == json.loads((DATA / "scnn_test.expected.json").read_text())
+
+
+def test_the_scnn_test_model_gives_the_reference_embeddings() -> None:
+    expected = json.loads((DATA / "scnn_test.expected.json").read_text())
+    masks = np.array([[int(c) for c in m] for m in expected["masks"]], dtype=np.float32).reshape(-1, 1, 48, 48)
+    session = ort.InferenceSession(str(DATA / "scnn_test.onnx"), providers=["CPUExecutionProvider"])
+    (out,) = session.run(None, {"silhouette": masks})
+    assert out.shape == (len(masks), 256)
+    np.testing.assert_allclose(out, expected["embedding"], rtol=1e-5, atol=1e-6)

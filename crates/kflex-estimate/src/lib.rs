@@ -8,8 +8,9 @@
 //! [`AdaptiveKalman`], both behind [`Fusion`]). With the cargo feature
 //! `onnx`: ONNX Runtime ([`onnx`]: the runtime library found without the
 //! user's help, models checked against their cards and the shapes an
-//! estimator expects) and KBJAE (`Kbjae`, the MLP on the command and its
-//! rate). IBJAE's embedding and retrieval come with the estimation issue.
+//! estimator expects), KBJAE (`Kbjae`, the MLP on the command and its
+//! rate) and IBJAE's Siamese CNN (`Scnn`, a 48×48 silhouette to a 256-d
+//! embedding). IBJAE's retrieval comes with the estimation issue.
 //!
 //! ## Fusion
 //!
@@ -63,6 +64,8 @@ mod fusion;
 mod kbjae;
 #[cfg(feature = "onnx")]
 pub mod onnx;
+#[cfg(feature = "onnx")]
+mod scnn;
 mod segment;
 
 pub use error::{EstimateError, Result};
@@ -74,4 +77,6 @@ pub use fusion::{
 pub use kbjae::{CommandRate, KBJAE_INPUT, KBJAE_OUTPUT, Kbjae};
 /// The shared types this crate's API takes and returns.
 pub use kflex_model::{Bounds, Mask, RangeError, Roi};
+#[cfg(feature = "onnx")]
+pub use scnn::{EMBEDDING_DIM, SCNN_INPUT, SCNN_OUTPUT, SCNN_SIDE, Scnn};
 pub use segment::{SegmentParams, Segmentation, Segmenter, segment};

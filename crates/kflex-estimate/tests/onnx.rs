@@ -188,3 +188,66 @@ fn missing_truncated_and_corrupt_models_are_errors_not_panics() {
     }
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+fn scnn_expected() -> (Vec<kflex_model::Mask>, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(data("scnn_test.expected.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let masks = v["masks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| {
+            let bits: Vec<u8> = m.as_str().unwrap().bytes().map(|b| b - b'0').collect();
+            kflex_model::Mask::from_raw(48, 48, bits).unwrap()
+        })
+        .collect();
+    let embeddings = v["embedding"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| {
+            e.as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        })
+        .collect();
+    (masks, embeddings)
+}
+
+#[test]
+fn scnn_embeds_silhouettes_as_the_network_does() {
+    use kflex_estimate::{EMBEDDING_DIM, Scnn};
+    let (masks, want) = scnn_expected();
+    let mut scnn = Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
+    let mut one = [0.0f32; EMBEDDING_DIM];
+    for (mask, w) in masks.iter().zip(&want) {
+        scnn.embed(mask, &mut one).unwrap();
+        for (g, w) in one.iter().zip(w) {
+            assert!((f64::from(*g) - w).abs() < 1e-5, "{g} against {w}");
+        }
+    }
+    let batch = scnn.embed_batch(&masks).unwrap();
+    assert_eq!(batch.len(), masks.len() * EMBEDDING_DIM);
+    for (g, w) in batch.iter().zip(want.iter().flatten()) {
+        assert!((f64::from(*g) - w).abs() < 1e-5, "{g} against {w}");
+    }
+    // different silhouettes, different embeddings
+    assert!(
+        want[0]
+            .iter()
+            .zip(&want[2])
+            .any(|(a, b)| (a - b).abs() > 1e-3)
+    );
+    let wrong = kflex_model::Mask::new(32, 32).unwrap();
+    assert!(matches!(
+        scnn.embed(&wrong, &mut one),
+        Err(EstimateError::BufferSize { .. })
+    ));
+    // a KBJAE model is not an SCNN
+    assert!(matches!(
+        Scnn::load(&data("kbjae_test.onnx"), 1),
+        Err(EstimateError::ModelMismatch { .. })
+    ));
+}
