@@ -9,10 +9,9 @@ import copy
 import threading
 import time
 
+import kflex
 import numpy as np
 import pytest
-
-import kflex
 
 
 @pytest.fixture(scope="module")
@@ -29,8 +28,15 @@ def test_config_fields_are_the_rust_ones_with_their_defaults():
     config = kflex.PlantConfig()
     d = config.to_dict()
     assert set(d) == {
-        "geometry", "sheath", "sheath_deg", "seating", "joint", "joint_model",
-        "translation", "noise", "seed",
+        "geometry",
+        "sheath",
+        "sheath_deg",
+        "seating",
+        "joint",
+        "joint_model",
+        "translation",
+        "noise",
+        "seed",
     }
     assert d["joint_model"] == "analytic" and d["noise"] is None
     assert config.sheath.to_dict() == kflex.SheathParams().to_dict()
@@ -197,7 +203,9 @@ def test_kinematics_scalars_arrays_and_errors():
     theta = np.linspace(-1.0, 1.0, 12).reshape(3, 4)
     out = g.differential_stroke_mm(theta)
     assert out.shape == (3, 4)
-    np.testing.assert_array_equal(g.delta_l_a_mm(theta.astype(np.float32)), g.delta_l_a_mm(theta.astype(np.float32).astype(np.float64)))
+    np.testing.assert_array_equal(
+        g.delta_l_a_mm(theta.astype(np.float32)), g.delta_l_a_mm(theta.astype(np.float32).astype(np.float64))
+    )
     back = g.theta_rad_from_delta_l_a(g.delta_l_a_mm(theta), 1.6)
     np.testing.assert_allclose(back, theta, atol=1e-9)
     with pytest.raises(ValueError, match="not reachable"):
@@ -223,16 +231,18 @@ def test_frames_masks_and_silhouettes_are_numpy(scene):
     np.testing.assert_array_equal(silhouette, frame.instrument)
     roi = kflex.Roi.paper(camera)
     window = kflex.Rasterizer().silhouette_window(camera, shape, roi)
-    np.testing.assert_array_equal(window, silhouette[roi.y0:roi.y0 + roi.height, roi.x0:roi.x0 + roi.width])
+    np.testing.assert_array_equal(window, silhouette[roi.y0 : roi.y0 + roi.height, roi.x0 : roi.x0 + roi.width])
     part = kflex.SceneRenderer().render_window(camera, shape, roi)
-    np.testing.assert_array_equal(part.rgb, frame.rgb[roi.y0:roi.y0 + roi.height, roi.x0:roi.x0 + roi.width])
+    np.testing.assert_array_equal(part.rgb, frame.rgb[roi.y0 : roi.y0 + roi.height, roi.x0 : roi.x0 + roi.width])
 
 
 def test_frames_are_deterministic_in_seed_and_frame(scene):
     camera, shape = scene
     r = kflex.SceneRenderer()
     a = r.render(camera, shape, kflex.FrameParams(seed=3, frame=1)).rgb
-    np.testing.assert_array_equal(a, kflex.SceneRenderer().render(camera, shape, kflex.FrameParams(seed=3, frame=1)).rgb)
+    np.testing.assert_array_equal(
+        a, kflex.SceneRenderer().render(camera, shape, kflex.FrameParams(seed=3, frame=1)).rgb
+    )
     assert not np.array_equal(a, r.render(camera, shape, kflex.FrameParams(seed=3, frame=2)).rgb)
     assert not np.array_equal(a, r.render(camera, shape, kflex.FrameParams(seed=4, frame=1)).rgb)
 

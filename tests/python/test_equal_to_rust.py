@@ -8,9 +8,8 @@ is exact: the same Rust code runs on the same bits.
 
 from __future__ import annotations
 
-import numpy as np
-
 import kflex
+import numpy as np
 
 
 def flat(tree: dict, prefix: str = "") -> dict[str, float]:
@@ -68,9 +67,7 @@ def test_kinematics_equal_rust(golden):
 
 def test_trajectory_equals_rust(golden):
     g = golden["trajectory"]
-    trajectory = kflex.Trajectory(
-        kind="band_limited", min_deg=-20.0, max_deg=60.0, cutoff_hz=1.5, components=8, seed=5
-    )
+    trajectory = kflex.Trajectory(kind="band_limited", min_deg=-20.0, max_deg=60.0, cutoff_hz=1.5, components=8, seed=5)
     theta, rate = trajectory.sample(np.array(g["t_s"]))
     np.testing.assert_array_equal(theta, g["theta_d_deg"])
     np.testing.assert_array_equal(rate, g["theta_d_rate_deg_per_s"])

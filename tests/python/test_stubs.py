@@ -10,9 +10,8 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-import pytest
-
 import kflex
+import pytest
 
 STUB = Path(__file__).resolve().parents[2] / "crates" / "kflex-py" / "python" / "kflex" / "_kflex.pyi"
 
@@ -23,11 +22,7 @@ def stub_classes() -> dict[str, ast.ClassDef]:
 
 
 def stub_fields(node: ast.ClassDef) -> set[str]:
-    return {
-        s.target.id
-        for s in node.body
-        if isinstance(s, ast.AnnAssign) and isinstance(s.target, ast.Name)
-    }
+    return {s.target.id for s in node.body if isinstance(s, ast.AnnAssign) and isinstance(s.target, ast.Name)}
 
 
 SAMPLES = {

@@ -3,16 +3,15 @@
 # tests/python/test_stubs.py checks that the fields listed here are the Rust
 # types' own and that every name the module exports is stubbed.
 
-from typing import Any, Literal, TypeVar
+from typing import Any, Literal, Self, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
 
-_P = TypeVar("_P", bound="_Params")
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
-FloatsIn = float | npt.NDArray[np.float64] | npt.NDArray[np.float32]
-FloatsOut = float | npt.NDArray[np.float64]
+FloatArray: TypeAlias = npt.NDArray[np.float64]
+BoolArray: TypeAlias = npt.NDArray[np.bool_]
+FloatsIn: TypeAlias = float | npt.NDArray[np.float64] | npt.NDArray[np.float32]
+FloatsOut: TypeAlias = float | npt.NDArray[np.float64]
 
 class RangeError(ValueError):
     """A value outside its valid range; the bounds' ends may be infinite."""
@@ -33,8 +32,8 @@ class _Params:
     def __init__(self, **fields: Any) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     @classmethod
-    def from_dict(cls: type[_P], fields: dict[str, Any]) -> _P: ...
-    def copy(self: _P) -> _P: ...
+    def from_dict(cls, fields: dict[str, Any]) -> Self: ...
+    def copy(self) -> Self: ...
     def __eq__(self, other: object) -> bool: ...
 
 # ---- plant ------------------------------------------------------------------
