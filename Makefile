@@ -11,7 +11,7 @@ STAMP := $(VENV)/.installed
 CARGO ?= cargo
 RUN_ARGS ?=
 
-.PHONY: run test venv build test-rust test-embedded test-python lint fmt bench fit loops gallery clean
+.PHONY: run test venv build test-rust test-embedded py-module test-python lint fmt bench fit loops gallery clean
 
 run: venv build
 	./target/release/kflex-cli run $(RUN_ARGS)
@@ -43,7 +43,13 @@ EMBEDDED := -p kflex-model -p kflex-estimate -p kflex-control
 test-embedded:
 	$(CARGO) test --locked $(EMBEDDED) --no-default-features
 
-test-python: venv
+# the Python module kflex (crates/kflex-py) built by maturin and installed
+# into .venv (editable: python/kflex links to the source); release profile,
+# so the Python tests run at full speed
+py-module: venv
+	VIRTUAL_ENV=$(abspath $(VENV)) $(VENV)/bin/maturin develop --release --locked -q -m crates/kflex-py/Cargo.toml
+
+test-python: venv py-module
 	$(VPY) -m pytest -q tests/python
 
 lint:

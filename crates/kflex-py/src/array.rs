@@ -1,0 +1,176 @@
+//! numpy arrays in and out: the glue's checks of dtype and shape, in one place.
+//!
+//! Inputs are copied into Rust buffers (any strides, so non-contiguous views
+//! work) before a long call lets go of the interpreter: another Python thread
+//! may then run, and must not be able to change an array under the call.
+
+use kflex_model::Mask;
+use numpy::ndarray::{Array2, Array3, ArrayD, IxDyn};
+use numpy::prelude::*;
+use numpy::{PyArrayDyn, PyUntypedArray};
+use pyo3::prelude::*;
+use pyo3::types::{PyFloat, PyInt};
+
+use crate::error::{Result, type_error};
+
+/// Floats from Python: one number, or an array of any shape.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Floats {
+    /// A Python `int` or `float` (or a numpy scalar).
+    Scalar(f64),
+    /// A float64 or float32 array (float32 widened exactly), in C order.
+    Array(ArrayD<f64>),
+}
+
+impl Floats {
+    /// Applies `f` to each value, keeping the shape (a scalar stays one).
+    pub(crate) fn map(&self, f: impl Fn(f64) -> f64) -> Self {
+        match self {
+            Self::Scalar(x) => Self::Scalar(f(*x)),
+            Self::Array(a) => Self::Array(a.mapv(f)),
+        }
+    }
+
+    /// [`Floats::map`] with a function that may fail (the first error is returned).
+    pub(crate) fn try_map<E>(
+        &self,
+        f: impl Fn(f64) -> std::result::Result<f64, E>,
+    ) -> std::result::Result<Self, E> {
+        Ok(match self {
+            Self::Scalar(x) => Self::Scalar(f(*x)?),
+            Self::Array(a) => {
+                let values = a
+                    .iter()
+                    .map(|&x| f(x))
+                    .collect::<std::result::Result<Vec<_>, E>>()?;
+                Self::Array(ArrayD::from_shape_vec(a.raw_dim(), values).expect("same shape"))
+            }
+        })
+    }
+
+    /// As Python: a `float` or a float64 array.
+    pub(crate) fn into_py(self, py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+        Ok(match self {
+            Self::Scalar(x) => x.into_pyobject(py)?.into_any(),
+            Self::Array(a) => a.into_pyarray(py).into_any(),
+        })
+    }
+}
+
+/// `obj` as floats: a Python number, a numpy float64 or float32 array (any
+/// shape, any strides), or a list of numbers.
+///
+/// # Errors
+/// `TypeError` naming `name`, the dtypes accepted and the one given.
+pub(crate) fn floats(name: &str, obj: &Bound<'_, PyAny>) -> Result<Floats> {
+    if obj.cast::<PyFloat>().is_ok() || obj.cast::<PyInt>().is_ok() {
+        return Ok(Floats::Scalar(obj.extract()?));
+    }
+    if let Ok(a) = obj.cast::<PyArrayDyn<f64>>() {
+        return Ok(Floats::Array(a.readonly().as_array().to_owned()));
+    }
+    if let Ok(a) = obj.cast::<PyArrayDyn<f32>>() {
+        return Ok(Floats::Array(a.readonly().as_array().mapv(f64::from)));
+    }
+    if let Ok(a) = obj.cast::<PyUntypedArray>() {
+        if a.ndim() == 0
+            && let Ok(x) = obj.extract::<f64>()
+        {
+            return Ok(Floats::Scalar(x));
+        }
+        return Err(type_error(format!(
+            "{name}: expected a float64 or float32 array, got dtype {}",
+            a.dtype()
+        )));
+    }
+    if let Ok(v) = obj.extract::<Vec<f64>>() {
+        let n = v.len();
+        return Ok(Floats::Array(
+            ArrayD::from_shape_vec(IxDyn(&[n]), v).expect("1-D"),
+        ));
+    }
+    if let Ok(x) = obj.extract::<f64>() {
+        return Ok(Floats::Scalar(x));
+    }
+    Err(type_error(format!(
+        "{name}: expected a number or a float64/float32 array, got {}",
+        obj.get_type().name()?
+    )))
+}
+
+/// A one-dimensional series of floats (`name` in the error).
+///
+/// # Errors
+/// As [`floats`]; `TypeError` for an array that is not one-dimensional.
+pub(crate) fn series(name: &str, obj: &Bound<'_, PyAny>) -> Result<Vec<f64>> {
+    match floats(name, obj)? {
+        Floats::Array(a) if a.ndim() == 1 => Ok(a.iter().copied().collect()),
+        Floats::Array(a) => Err(type_error(format!(
+            "{name}: expected a one-dimensional array, got shape {:?}",
+            a.shape()
+        ))),
+        Floats::Scalar(_) => Err(type_error(format!(
+            "{name}: expected a one-dimensional array, got a number"
+        ))),
+    }
+}
+
+/// An RGB frame: `(rgb row-major, width, height)`.
+///
+/// # Errors
+/// `TypeError` unless `obj` is an `H×W×3` uint8 array (any strides).
+pub(crate) fn rgb(obj: &Bound<'_, PyAny>) -> Result<(Vec<u8>, u32, u32)> {
+    let describe = || -> Result<String> {
+        Ok(match obj.cast::<PyUntypedArray>() {
+            Ok(a) => format!("shape {:?} dtype {}", a.shape(), a.dtype()),
+            Err(_) => obj.get_type().name()?.to_string(),
+        })
+    };
+    let Ok(a) = obj.cast::<numpy::PyArray3<u8>>() else {
+        return Err(type_error(format!(
+            "rgb: expected an HxWx3 uint8 array, got {}",
+            describe()?
+        )));
+    };
+    let view = a.readonly();
+    let view = view.as_array();
+    let (h, w, c) = view.dim();
+    let (Ok(wu), Ok(hu)) = (u32::try_from(w), u32::try_from(h)) else {
+        return Err(type_error(format!("rgb: image of {w}x{h} px is too large")));
+    };
+    if c != 3 || w == 0 || h == 0 {
+        return Err(type_error(format!(
+            "rgb: expected an HxWx3 uint8 array, got {}",
+            describe()?
+        )));
+    }
+    Ok((view.iter().copied().collect(), wu, hu))
+}
+
+/// A mask as an `H×W` bool array.
+pub(crate) fn mask<'py>(py: Python<'py>, m: &Mask) -> Bound<'py, PyAny> {
+    let shape = (m.height() as usize, m.width() as usize);
+    let values = m.data().iter().map(|&v| v != 0).collect();
+    Array2::from_shape_vec(shape, values)
+        .expect("a mask's buffer is width x height")
+        .into_pyarray(py)
+        .into_any()
+}
+
+/// An RGB buffer as an `H×W×3` uint8 array.
+pub(crate) fn image<'py>(
+    py: Python<'py>,
+    rgb: Vec<u8>,
+    width: u32,
+    height: u32,
+) -> Bound<'py, PyAny> {
+    Array3::from_shape_vec((height as usize, width as usize, 3), rgb)
+        .expect("a frame's buffer is width x height x 3")
+        .into_pyarray(py)
+        .into_any()
+}
+
+/// A series of floats as a float64 array.
+pub(crate) fn column(py: Python<'_>, values: Vec<f64>) -> Bound<'_, PyAny> {
+    values.into_pyarray(py).into_any()
+}

@@ -1,0 +1,433 @@
+//! The endoscope camera, the instrument it sees, and the regions of interest.
+
+use kflex_model::{
+    Banding, BuildTolerances, BuiltInstrument, Camera, Instrument, InstrumentParams,
+    InstrumentShape, Intrinsics, Lens, PoseRange, Roi, WorkingBand, WorkingRegions,
+};
+use pyo3::prelude::*;
+
+use crate::error::Result;
+use crate::plant::{PyJointParams, PyTranslationParams};
+use crate::value::serde_class;
+
+serde_class!(
+    /// Pinhole intrinsics in pixels (kflex-model's `Intrinsics`): `width`,
+    /// `height`, `fx`, `fy`, `cx`, `cy`; all required (`Intrinsics.default()`
+    /// is the 640×480 default).
+    PyIntrinsics, "Intrinsics", Intrinsics, {
+        /// The default 640×480 camera's intrinsics.
+        #[staticmethod]
+        fn default() -> Self {
+            Intrinsics::default().into()
+        }
+
+        /// Square pixels, centred principal point, horizontal field of view
+        /// `hfov_deg` (deg); `RangeError` outside (1, 179).
+        #[staticmethod]
+        fn from_fov(width: u32, height: u32, hfov_deg: f64) -> Result<Self> {
+            Ok(Intrinsics::from_fov(width, height, hfov_deg)?.into())
+        }
+
+        /// The paper's camera: 1920×1080, the default's field of view.
+        #[staticmethod]
+        fn full_hd() -> Self {
+            Intrinsics::full_hd().into()
+        }
+
+        /// Checks size, focal lengths and principal point; raises `RangeError`.
+        fn validate(&self) -> Result<()> {
+            Ok(self.inner.validate()?)
+        }
+
+        /// The intrinsics of the camera that sees the region `x0, y0, w, h`
+        /// (px) of this image resampled to `out_w × out_h`.
+        fn region(&self, x0: f64, y0: f64, w: f64, h: f64, out_w: u32, out_h: u32) -> Result<Self> {
+            Ok(self.inner.region(x0, y0, w, h, out_w, out_h)?.into())
+        }
+    }
+);
+
+serde_class!(
+    /// Lens distortion (division model `division`, λ) and vignetting
+    /// (`vignetting`, κ) (kflex-model's `Lens`); dimensionless.
+    PyLens, "Lens", Lens, {
+        /// An ideal pinhole: no distortion, no vignetting.
+        #[staticmethod]
+        fn pinhole() -> Self {
+            Lens::PINHOLE.into()
+        }
+
+        /// Checks the coefficients for an image with intrinsics `k`; raises `RangeError`.
+        fn validate(&self, k: PyIntrinsics) -> Result<()> {
+            Ok(self.inner.validate(&k.inner)?)
+        }
+
+        /// Distorted normalised coordinates `[xd, yd]` of undistorted `(xu, yu)`.
+        fn distort(&self, xu: f64, yu: f64) -> [f64; 2] {
+            self.inner.distort(xu, yu)
+        }
+
+        /// Undistorted normalised coordinates `[xu, yu]` of distorted `(xd, yd)`.
+        fn undistort(&self, xd: f64, yd: f64) -> [f64; 2] {
+            self.inner.undistort(xd, yd)
+        }
+    }
+);
+
+serde_class!(
+    /// A region of interest in pixels, `[x0, x0 + width) × [y0, y0 + height)`
+    /// (kflex-model's `Roi`); all four fields required.
+    PyRoi, "Roi", Roi, {
+        /// The whole of a `width × height` image.
+        #[staticmethod]
+        fn whole(width: u32, height: u32) -> Self {
+            Roi::whole(width, height).into()
+        }
+
+        /// The working region of the paper's operating range (θ in [0, 50]
+        /// deg at d = 10 mm) for `camera`.
+        #[staticmethod]
+        fn paper(py: Python<'_>, camera: PyRef<'_, PyCamera>) -> Result<Self> {
+            let camera = camera.inner;
+            Ok(py.detach(|| Roi::paper(&camera))?.into())
+        }
+
+        /// The smallest region of `camera`'s image holding the joint and
+        /// gripper of `instrument` over `poses`, plus `margin_px` (px).
+        #[staticmethod]
+        fn for_workspace(py: Python<'_>, camera: PyRef<'_, PyCamera>, instrument: PyRef<'_, PyInstrument>, poses: PyPoseRange, margin_px: u32) -> Result<Self> {
+            let (camera, instrument) = (camera.inner, instrument.inner);
+            Ok(py.detach(|| Roi::for_workspace(&camera, &instrument, &poses.inner, margin_px))?.into())
+        }
+
+        /// Whether `inner` lies inside this region.
+        fn holds(&self, inner: PyRoi) -> bool {
+            self.inner.holds(&inner.inner)
+        }
+
+        /// Checks that the region is not empty and lies inside a
+        /// `width × height` image; raises `RangeError`.
+        fn check_within(&self, width: u32, height: u32) -> Result<()> {
+            Ok(self.inner.check_within(width, height)?)
+        }
+
+        /// Number of pixels.
+        fn area(&self) -> u64 {
+            self.inner.area()
+        }
+    }
+);
+
+serde_class!(
+    /// The poses a working region covers (kflex-model's `PoseRange`):
+    /// `theta_deg` [from, to] (deg), `translation_mm` [from, to] (mm).
+    PyPoseRange, "PoseRange", PoseRange, {
+        /// The paper's range: θ in [0, 50] deg at d = 10 mm.
+        #[staticmethod]
+        fn paper() -> Self {
+            PoseRange::PAPER.into()
+        }
+
+        /// The default camera's full range: θ in [-90, 90] deg, d in [8, 40] mm.
+        #[staticmethod]
+        fn full() -> Self {
+            PoseRange::FULL.into()
+        }
+
+        /// Whether the pose (deg, mm) lies in the range, ends included.
+        fn contains(&self, theta_deg: f64, translation_mm: f64) -> bool {
+            self.inner.contains(theta_deg, translation_mm)
+        }
+    }
+);
+
+serde_class!(
+    /// How `WorkingRegions.for_workspace` cuts a pose range into bands
+    /// (kflex-model's `Banding`): `margin_px`, `growth`, `theta_parts`,
+    /// `theta_overlap_deg`.
+    PyBanding, "Banding", Banding, {}
+);
+
+serde_class!(
+    /// One band of `WorkingRegions` (kflex-model's `WorkingBand`): `poses`
+    /// and `roi` (read as `dict`s).
+    PyWorkingBand, "WorkingBand", WorkingBand, {
+        /// The band's region as a `Roi`.
+        #[getter]
+        fn region(&self) -> PyRoi {
+            self.inner.roi.into()
+        }
+    }
+);
+
+serde_class!(
+    /// Shape parameters of the instrument (kflex-model's `InstrumentParams`): mm, deg.
+    PyInstrumentParams, "InstrumentParams", InstrumentParams, {}
+);
+
+serde_class!(
+    /// Manufacturing and mounting tolerances (kflex-model's
+    /// `BuildTolerances`): the reality gap between the simulated robot and
+    /// the nominal model. Relative tolerances dimensionless, deg, mm, px.
+    PyBuildTolerances, "BuildTolerances", BuildTolerances, {
+        /// No tolerances: the as-built instrument and camera are the nominal ones.
+        #[staticmethod]
+        fn none() -> Self {
+            BuildTolerances::NONE.into()
+        }
+
+        /// Checks every tolerance; raises `RangeError`.
+        fn validate(&self) -> Result<()> {
+            Ok(self.inner.validate()?)
+        }
+
+        /// `nominal` as built, its links drawn with `seed`.
+        fn instrument(&self, nominal: PyRef<'_, PyInstrument>, seed: u64) -> Result<PyBuiltInstrument> {
+            Ok(PyBuiltInstrument { inner: self.inner.instrument(&nominal.inner, seed)? })
+        }
+
+        /// `nominal` as mounted and calibrated, drawn with `seed`.
+        fn camera(&self, nominal: PyRef<'_, PyCamera>, seed: u64) -> Result<PyCamera> {
+            Ok(PyCamera { inner: self.inner.camera(&nominal.inner, seed)? })
+        }
+    }
+);
+
+/// The endoscope camera (kflex-model's `Camera`): intrinsics, lens, and
+/// `camera_from_overtube`, the rigid transform from the overtube's frame to
+/// the camera's (mm). `intrinsics` and `lens` read as copies: assign one to
+/// change it.
+#[pyclass(name = "Camera", module = "kflex", eq)]
+#[derive(Debug, Clone, PartialEq)]
+pub struct PyCamera {
+    pub(crate) inner: Camera,
+}
+
+#[pymethods]
+impl PyCamera {
+    /// At the centre of the overtube's face, looking along it; the default
+    /// intrinsics and lens unless given.
+    #[new]
+    #[pyo3(signature = (intrinsics = None, lens = None))]
+    fn py_new(intrinsics: Option<PyIntrinsics>, lens: Option<PyLens>) -> Self {
+        let mut inner = Camera::default();
+        if let Some(k) = intrinsics {
+            inner.intrinsics = k.inner;
+        }
+        if let Some(l) = lens {
+            inner.lens = l.inner;
+        }
+        Self { inner }
+    }
+
+    /// Intrinsics (a copy).
+    #[getter]
+    fn intrinsics(&self) -> PyIntrinsics {
+        self.inner.intrinsics.into()
+    }
+
+    #[setter]
+    fn set_intrinsics(&mut self, k: PyIntrinsics) {
+        self.inner.intrinsics = k.inner;
+    }
+
+    /// Lens (a copy).
+    #[getter]
+    fn lens(&self) -> PyLens {
+        self.inner.lens.into()
+    }
+
+    #[setter]
+    fn set_lens(&mut self, lens: PyLens) {
+        self.inner.lens = lens.inner;
+    }
+
+    /// `camera_from_overtube` as a 4×4 homogeneous matrix (mm).
+    #[getter]
+    fn camera_from_overtube(&self) -> [[f64; 4]; 4] {
+        let m = self.inner.camera_from_overtube.to_homogeneous();
+        std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
+    }
+
+    /// Checks the intrinsics, then the lens; raises `RangeError`.
+    fn validate(&self) -> Result<()> {
+        Ok(self.inner.validate()?)
+    }
+
+    /// Pixel `[u, v]` of a point in the overtube frame (mm), or None behind the camera.
+    fn project(&self, p_overtube_mm: [f64; 3]) -> Option<[f64; 2]> {
+        self.inner.project(p_overtube_mm)
+    }
+
+    /// The ray through pixel position `(u, v)` in the camera frame (`z = 1`).
+    fn ray_direction(&self, u: f64, v: f64) -> [f64; 3] {
+        self.inner.ray_direction(u, v)
+    }
+
+    /// The lens's relative illumination at pixel position `(u, v)`.
+    fn illumination(&self, u: f64, v: f64) -> f64 {
+        self.inner.illumination(u, v)
+    }
+
+    /// The same camera with other intrinsics (e.g. a region's).
+    fn with_intrinsics(&self, intrinsics: PyIntrinsics) -> Self {
+        Self {
+            inner: self.inner.with_intrinsics(intrinsics.inner),
+        }
+    }
+
+    fn __repr__(&self) -> String {
+        let k = &self.inner.intrinsics;
+        format!(
+            "Camera({}x{}, fx={}, lens={:?})",
+            k.width, k.height, k.fx, self.inner.lens
+        )
+    }
+}
+
+/// The instrument's geometry (kflex-model's `Instrument`).
+#[pyclass(name = "Instrument", module = "kflex")]
+#[derive(Debug, Clone)]
+pub struct PyInstrument {
+    pub(crate) inner: Instrument,
+}
+
+#[pymethods]
+impl PyInstrument {
+    /// A validated instrument; raises `RangeError` for a parameter out of range.
+    #[new]
+    fn py_new(
+        joint: PyJointParams,
+        params: PyInstrumentParams,
+        n_segments: u32,
+        translation: PyTranslationParams,
+    ) -> Result<Self> {
+        Ok(Self {
+            inner: Instrument::new(joint.inner, params.inner, n_segments, translation.inner)?,
+        })
+    }
+
+    /// The default K-FLEX-scale instrument (the plant's defaults).
+    #[staticmethod]
+    fn kflex() -> Self {
+        Self {
+            inner: Instrument::kflex(),
+        }
+    }
+
+    /// The shape at bend `theta_deg` (deg) and translation `translation_mm`
+    /// (mm); raises `RangeError` outside the workspace.
+    fn shape(&self, theta_deg: f64, translation_mm: f64) -> Result<PyInstrumentShape> {
+        Ok(PyInstrumentShape {
+            inner: self.inner.shape(theta_deg, translation_mm)?,
+        })
+    }
+}
+
+/// `BuildTolerances.instrument`'s as-built instrument (kflex-model's `BuiltInstrument`).
+#[pyclass(name = "BuiltInstrument", module = "kflex")]
+pub struct PyBuiltInstrument {
+    inner: BuiltInstrument,
+}
+
+#[pymethods]
+impl PyBuiltInstrument {
+    /// The as-built shape at bend `theta_deg` (deg) and translation
+    /// `translation_mm` (mm); raises `RangeError` outside the workspace.
+    fn shape(&self, theta_deg: f64, translation_mm: f64) -> Result<PyInstrumentShape> {
+        Ok(PyInstrumentShape {
+            inner: self.inner.shape(theta_deg, translation_mm)?,
+        })
+    }
+}
+
+/// The instrument's bodies at one pose (kflex-model's `InstrumentShape`),
+/// in the overtube frame, mm.
+#[pyclass(name = "InstrumentShape", module = "kflex")]
+pub struct PyInstrumentShape {
+    pub(crate) inner: InstrumentShape,
+}
+
+#[pymethods]
+impl PyInstrumentShape {
+    /// The tool tip, mm.
+    #[getter]
+    fn tip_mm(&self) -> [f64; 3] {
+        self.inner.tip_mm
+    }
+
+    /// Number of bodies (discs, backbone, clevis, pin, jaws…).
+    fn __len__(&self) -> usize {
+        self.inner.bodies.len()
+    }
+
+    /// The translation the shape was built at, mm.
+    fn translation_mm(&self) -> f64 {
+        self.inner.translation_mm()
+    }
+
+    /// The bend the shape shows, deg.
+    fn bend_deg(&self) -> f64 {
+        self.inner.bend_deg()
+    }
+}
+
+/// Working regions over a pose range, one per band of it (kflex-model's `WorkingRegions`).
+#[pyclass(name = "WorkingRegions", module = "kflex")]
+pub struct PyWorkingRegions {
+    inner: WorkingRegions,
+}
+
+#[pymethods]
+impl PyWorkingRegions {
+    /// The default working regions of `camera` (the K-FLEX instrument over
+    /// the full range, default banding). Runs without the interpreter lock.
+    #[staticmethod]
+    fn full(py: Python<'_>, camera: PyRef<'_, PyCamera>) -> Result<Self> {
+        let camera = camera.inner;
+        Ok(Self {
+            inner: py.detach(|| WorkingRegions::full(&camera))?,
+        })
+    }
+
+    /// Bands of `poses` for `camera` and `instrument`, cut as `banding` says.
+    #[staticmethod]
+    fn for_workspace(
+        py: Python<'_>,
+        camera: PyRef<'_, PyCamera>,
+        instrument: PyRef<'_, PyInstrument>,
+        poses: PyPoseRange,
+        banding: PyBanding,
+    ) -> Result<Self> {
+        let (camera, instrument) = (camera.inner, instrument.inner);
+        Ok(Self {
+            inner: py.detach(|| {
+                WorkingRegions::for_workspace(&camera, &instrument, &poses.inner, &banding.inner)
+            })?,
+        })
+    }
+
+    /// The poses the regions cover.
+    #[getter]
+    fn poses(&self) -> PyPoseRange {
+        (*self.inner.poses()).into()
+    }
+
+    /// The bands, by part of the bend range, nearest first.
+    #[getter]
+    fn bands(&self) -> Vec<PyWorkingBand> {
+        self.inner.bands().iter().map(|b| (*b).into()).collect()
+    }
+
+    /// The band for the pose (deg, mm); raises `RangeError` outside the range.
+    fn at(&self, theta_deg: f64, translation_mm: f64) -> Result<PyWorkingBand> {
+        Ok((*self.inner.at(theta_deg, translation_mm)?).into())
+    }
+
+    /// The band for the pose clamped into the range (None if there is none).
+    fn nearest(&self, theta_deg: f64, translation_mm: f64) -> Option<PyWorkingBand> {
+        self.inner
+            .nearest(theta_deg, translation_mm)
+            .map(|b| (*b).into())
+    }
+}

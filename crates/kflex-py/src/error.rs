@@ -1,0 +1,309 @@
+//! The one place where kflex errors become Python exceptions.
+//!
+//! | Rust error | Python exception |
+//! |---|---|
+//! | a [`RangeError`] (`OutOfRange`, `OutOfWorkspace`, in any crate) | [`RangeError`](PyRangeError), a `ValueError` carrying `name`, `value`, `min`, `max`, `min_inclusive`, `max_inclusive` |
+//! | other bad values (non-finite input, unreachable tendon length, unknown background or tissue, a metric's bad series, a field value serde refuses) | `ValueError` |
+//! | a buffer of the wrong size, a field of the wrong type, an unknown field | `TypeError` |
+//! | no instrument in a frame | [`NoInstrumentError`](PyNoInstrumentError), a `RuntimeError` (`Segmenter.segment` returns `None` instead) |
+//! | a diverged joint, nothing in view, a feature this build lacks, anything new | `RuntimeError` |
+//!
+//! [`classify`] decides the exception from the error alone (no interpreter
+//! needed, so it is unit-tested in plain Rust); `From<Error> for PyErr`
+//! builds it.
+
+use kflex_control::ControlError;
+use kflex_estimate::EstimateError;
+use kflex_model::{ModelError, RangeError};
+use pyo3::exceptions::{PyAttributeError, PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+
+pyo3::create_exception!(
+    kflex,
+    PyRangeError,
+    PyValueError,
+    "A value outside its valid range. Attributes: `name` (the quantity, unit in the name), `value`, `min`, `max`, `min_inclusive`, `max_inclusive` (the bounds; the ends may be infinite)."
+);
+
+pyo3::create_exception!(
+    kflex,
+    PyNoInstrumentError,
+    PyRuntimeError,
+    "The segmentation found no instrument in the region of interest (`Segmenter.segment` returns None instead of raising it)."
+);
+
+/// Every error a wrapper can return; `?` converts the crates' errors into it.
+#[derive(Debug)]
+pub(crate) enum Error {
+    /// From kflex-model.
+    Model(ModelError),
+    /// From kflex-estimate.
+    Estimate(EstimateError),
+    /// From kflex-control.
+    Control(ControlError),
+    /// Raised by the glue itself (argument checks), already a Python exception.
+    Py(PyErr),
+    /// A field value that serde refused; the string is serde's message.
+    Serde(String),
+    /// A field name the type does not have.
+    NoField(String),
+}
+
+/// Result of a wrapper.
+pub(crate) type Result<T> = std::result::Result<T, Error>;
+
+impl From<ModelError> for Error {
+    fn from(e: ModelError) -> Self {
+        Self::Model(e)
+    }
+}
+
+impl From<EstimateError> for Error {
+    fn from(e: EstimateError) -> Self {
+        Self::Estimate(e)
+    }
+}
+
+impl From<ControlError> for Error {
+    fn from(e: ControlError) -> Self {
+        Self::Control(e)
+    }
+}
+
+impl From<RangeError> for Error {
+    fn from(e: RangeError) -> Self {
+        Self::Model(ModelError::OutOfRange(e))
+    }
+}
+
+impl From<PyErr> for Error {
+    fn from(e: PyErr) -> Self {
+        Self::Py(e)
+    }
+}
+
+/// The Python exception an error becomes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Kind {
+    /// `kflex.RangeError` (a `ValueError`) with the bounds as attributes.
+    Range(RangeError),
+    /// `ValueError`.
+    Value,
+    /// `TypeError`.
+    Type,
+    /// `AttributeError`.
+    Attribute,
+    /// `kflex.NoInstrumentError` (a `RuntimeError`).
+    NoInstrument,
+    /// `RuntimeError`.
+    Runtime,
+}
+
+fn classify_model(e: &ModelError) -> Kind {
+    if let Some(r) = e.range() {
+        return Kind::Range(*r);
+    }
+    match e {
+        ModelError::NonFinite { .. }
+        | ModelError::Unreachable { .. }
+        | ModelError::UnknownBackground { .. }
+        | ModelError::UnknownTissue { .. } => Kind::Value,
+        ModelError::ImageSize { .. } => Kind::Type,
+        _ => Kind::Runtime,
+    }
+}
+
+/// The exception `e` becomes (`None` for an error that is already a Python one).
+pub(crate) fn classify(e: &Error) -> Option<Kind> {
+    Some(match e {
+        Error::Model(m) => classify_model(m),
+        Error::Estimate(EstimateError::Model(m)) => classify_model(m),
+        Error::Estimate(EstimateError::OutOfRange(r)) => Kind::Range(*r),
+        Error::Estimate(EstimateError::NoInstrument { .. }) => Kind::NoInstrument,
+        Error::Estimate(EstimateError::ImageSize { .. }) => Kind::Type,
+        Error::Estimate(_) => Kind::Runtime,
+        Error::Control(ControlError::Model(m)) => classify_model(m),
+        Error::Control(ControlError::OutOfRange(r)) => Kind::Range(*r),
+        Error::Control(
+            ControlError::NotEnoughData { .. } | ControlError::NonFiniteSample { .. },
+        ) => Kind::Value,
+        Error::Control(_) => Kind::Runtime,
+        // serde's messages: "invalid value: …" and "unknown variant …" are bad
+        // values; "invalid type: …", "missing field …", "unknown field …" are
+        // the wrong kind of argument
+        Error::Serde(msg) if msg.contains("invalid value") || msg.contains("unknown variant") => {
+            Kind::Value
+        }
+        Error::Serde(_) => Kind::Type,
+        Error::NoField(_) => Kind::Attribute,
+        Error::Py(_) => return None,
+    })
+}
+
+/// The message of `e` (the Rust error's own `Display`).
+pub(crate) fn message(e: &Error) -> String {
+    match e {
+        Error::Model(m) => m.to_string(),
+        Error::Estimate(m) => m.to_string(),
+        Error::Control(m) => m.to_string(),
+        Error::Py(p) => p.to_string(),
+        Error::Serde(m) | Error::NoField(m) => m.clone(),
+    }
+}
+
+impl From<Error> for PyErr {
+    fn from(e: Error) -> Self {
+        let msg = message(&e);
+        match classify(&e) {
+            None => match e {
+                Error::Py(p) => p,
+                _ => PyRuntimeError::new_err(msg),
+            },
+            Some(Kind::Range(r)) => Python::attach(|py| range_error(py, &msg, &r)),
+            Some(Kind::Value) => PyValueError::new_err(msg),
+            Some(Kind::Type) => PyTypeError::new_err(msg),
+            Some(Kind::Attribute) => PyAttributeError::new_err(msg),
+            Some(Kind::NoInstrument) => PyNoInstrumentError::new_err(msg),
+            Some(Kind::Runtime) => PyRuntimeError::new_err(msg),
+        }
+    }
+}
+
+/// A `kflex.RangeError` with the range's fields as attributes.
+fn range_error(py: Python<'_>, msg: &str, r: &RangeError) -> PyErr {
+    let err = PyRangeError::new_err(msg.to_owned());
+    let value = err.value(py);
+    let attach = || -> PyResult<()> {
+        value.setattr("name", r.name)?;
+        value.setattr("value", r.value)?;
+        value.setattr("min", r.bounds.min)?;
+        value.setattr("max", r.bounds.max)?;
+        value.setattr("min_inclusive", r.bounds.min_inclusive)?;
+        value.setattr("max_inclusive", r.bounds.max_inclusive)?;
+        Ok(())
+    };
+    match attach() {
+        Ok(()) => err,
+        Err(e) => e,
+    }
+}
+
+/// A `TypeError` raised by the glue's own argument checks.
+pub(crate) fn type_error(msg: impl Into<String>) -> Error {
+    Error::Py(PyTypeError::new_err(msg.into()))
+}
+
+/// A `ValueError` raised by the glue's own argument checks.
+pub(crate) fn value_error(msg: impl Into<String>) -> Error {
+    Error::Py(PyValueError::new_err(msg.into()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kflex_model::Bounds;
+
+    fn range() -> RangeError {
+        Bounds::open(0.0, 1e3).check("dt_s", -1.0).unwrap_err()
+    }
+
+    #[test]
+    fn range_errors_keep_their_bounds_from_every_crate() {
+        let r = range();
+        for e in [
+            Error::from(r),
+            Error::Model(ModelError::OutOfWorkspace(r)),
+            Error::Estimate(EstimateError::OutOfRange(r)),
+            Error::Estimate(EstimateError::Model(ModelError::OutOfRange(r))),
+            Error::Control(ControlError::OutOfRange(r)),
+            Error::Control(ControlError::Model(ModelError::OutOfRange(r))),
+        ] {
+            assert_eq!(classify(&e), Some(Kind::Range(r)), "{e:?}");
+        }
+        assert_eq!(
+            message(&Error::from(r)),
+            "dt_s = -1 is out of range: must be in (0, 1000)"
+        );
+    }
+
+    #[test]
+    fn bad_values_shapes_and_faults_go_to_their_exceptions() {
+        let cases = [
+            (
+                Error::Model(ModelError::NonFinite {
+                    name: "theta_c_deg",
+                    value: f64::NAN,
+                }),
+                Kind::Value,
+            ),
+            (
+                Error::Model(ModelError::UnknownBackground { name: "x".into() }),
+                Kind::Value,
+            ),
+            (
+                Error::Model(ModelError::ImageSize {
+                    what: "mask",
+                    width: 2,
+                    height: 2,
+                    expected: 4,
+                    got: 3,
+                }),
+                Kind::Type,
+            ),
+            (
+                Error::Estimate(EstimateError::ImageSize {
+                    width: 2,
+                    height: 2,
+                    expected: 12,
+                    got: 3,
+                }),
+                Kind::Type,
+            ),
+            (
+                Error::Estimate(EstimateError::NoInstrument { pixels: 0, min: 5 }),
+                Kind::NoInstrument,
+            ),
+            (
+                Error::Model(ModelError::Diverged {
+                    what: "joint angle",
+                }),
+                Kind::Runtime,
+            ),
+            (
+                Error::Model(ModelError::FeatureDisabled {
+                    what: "joint_model = rapier",
+                    feature: "multibody",
+                }),
+                Kind::Runtime,
+            ),
+            (
+                Error::Control(ControlError::NotEnoughData {
+                    metric: "rmse",
+                    needed: "one sample",
+                    got: 0,
+                }),
+                Kind::Value,
+            ),
+            (
+                Error::Serde("invalid type: string \"a\", expected f64".into()),
+                Kind::Type,
+            ),
+            (
+                Error::Serde("unknown field `x`, expected `a` or `b`".into()),
+                Kind::Type,
+            ),
+            (
+                Error::Serde("invalid value: integer `-1`, expected u32".into()),
+                Kind::Value,
+            ),
+            (
+                Error::Serde("unknown variant `x`, expected `analytic` or `rapier`".into()),
+                Kind::Value,
+            ),
+            (Error::NoField("no field".into()), Kind::Attribute),
+        ];
+        for (e, kind) in cases {
+            assert_eq!(classify(&e), Some(kind), "{e:?}");
+        }
+    }
+}

@@ -1,0 +1,83 @@
+//! # kflex-py — the Python module `kflex`
+//!
+//! Thin pyo3 wrappers over the kflex crates, numpy arrays in and out; no
+//! logic of their own. Names follow the Rust API (`Plant.step`,
+//! `SceneRenderer.render`, `Segmenter.segment`, …), units are in the names.
+//! The module is built by maturin as `kflex._kflex` and re-exported by the
+//! pure-Python package `kflex` (`python/kflex/__init__.py`, with `.pyi`
+//! stubs and a `py.typed` marker).
+//!
+//! * Parameter types (`PlantConfig`, `SheathParams`, `FrameParams`, `Roi`,
+//!   …) are the Rust serde structs: keyword construction, fields by name,
+//!   `to_dict`/`from_dict` in the JSON form `kflex-cli run --config` reads
+//!   (`value.rs`).
+//! * Whole runs are one call with the loop in Rust (`Plant.run` over an
+//!   array of commands, `OpenLoopScenario.run` over a trajectory).
+//! * Errors become Python exceptions in one place (`error.rs`): `RangeError`
+//!   (a `ValueError` with the bounds), `ValueError`, `TypeError`,
+//!   `RuntimeError`.
+//! * Long calls (runs, rendering, silhouettes, segmentation, working
+//!   regions) let go of the interpreter (`Python::detach`); their array
+//!   inputs are copied first (`array.rs`).
+//!
+//! kflex-model is used without default features: no rapier3d, the analytic
+//! joint only (the default joint); `joint_model = "rapier"` raises
+//! `RuntimeError`.
+
+mod array;
+mod camera;
+mod error;
+mod kinematics;
+mod plant;
+mod render;
+mod segment;
+mod value;
+
+use pyo3::prelude::*;
+
+#[pymodule]
+fn _kflex(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add("RangeError", py.get_type::<error::PyRangeError>())?;
+    m.add(
+        "NoInstrumentError",
+        py.get_type::<error::PyNoInstrumentError>(),
+    )?;
+    m.add_class::<plant::PyPlantConfig>()?;
+    m.add_class::<plant::PySheathParams>()?;
+    m.add_class::<plant::PyJointParams>()?;
+    m.add_class::<plant::PySeating>()?;
+    m.add_class::<plant::PyTranslationParams>()?;
+    m.add_class::<plant::PyAuroraNoise>()?;
+    m.add_class::<plant::PyCommand>()?;
+    m.add_class::<plant::PyPlantState>()?;
+    m.add_class::<plant::PyPlant>()?;
+    m.add_class::<plant::PySine>()?;
+    m.add_class::<plant::PyTrajectory>()?;
+    m.add_class::<plant::PyOpenLoopScenario>()?;
+    m.add_class::<plant::PyTrace>()?;
+    m.add_class::<kinematics::PyTendonGeometry>()?;
+    m.add_class::<camera::PyIntrinsics>()?;
+    m.add_class::<camera::PyLens>()?;
+    m.add_class::<camera::PyCamera>()?;
+    m.add_class::<camera::PyRoi>()?;
+    m.add_class::<camera::PyPoseRange>()?;
+    m.add_class::<camera::PyBanding>()?;
+    m.add_class::<camera::PyWorkingBand>()?;
+    m.add_class::<camera::PyWorkingRegions>()?;
+    m.add_class::<camera::PyInstrument>()?;
+    m.add_class::<camera::PyInstrumentParams>()?;
+    m.add_class::<camera::PyInstrumentShape>()?;
+    m.add_class::<camera::PyBuildTolerances>()?;
+    m.add_class::<camera::PyBuiltInstrument>()?;
+    m.add_class::<render::PyFrameParams>()?;
+    m.add_class::<render::PyOcclusion>()?;
+    m.add_class::<render::PyFrame>()?;
+    m.add_class::<render::PySceneRenderer>()?;
+    m.add_class::<render::PyRasterizer>()?;
+    m.add_class::<segment::PySegmentParams>()?;
+    m.add_class::<segment::PySegmentation>()?;
+    m.add_class::<segment::PySegmenter>()?;
+    m.add_function(wrap_pyfunction!(segment::segment, m)?)?;
+    Ok(())
+}
