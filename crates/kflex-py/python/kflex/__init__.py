@@ -7,6 +7,11 @@ Errors: ``RangeError`` (a ``ValueError`` carrying ``name``, ``value``,
 ``min``, ``max``) for out-of-range values, ``ValueError`` for other bad
 values, ``TypeError`` for a wrong dtype or shape, ``RuntimeError`` for
 runtime faults.
+
+Training data: ``KinematicDatasetConfig().generate()`` (KBJAE's D^k) and
+``ImagePairsConfig().generate()`` / ``.database()`` (IBJAE's D^I and its
+retrieval database) return ``(arrays, card)``; ``kflex.npz.save`` and
+``kflex.npz.load`` keep them on disk as ``.npz`` with a JSON card beside.
 """
 
 from kflex._kflex import (
@@ -18,11 +23,14 @@ from kflex._kflex import (
     Command,
     Frame,
     FrameParams,
+    ImagePairsConfig,
     Instrument,
     InstrumentParams,
     InstrumentShape,
     Intrinsics,
     JointParams,
+    KinematicDatasetConfig,
+    KinematicSetSpec,
     Lens,
     NoInstrumentError,
     Occlusion,
@@ -59,11 +67,14 @@ __all__ = [
     "Command",
     "Frame",
     "FrameParams",
+    "ImagePairsConfig",
     "Instrument",
     "InstrumentParams",
     "InstrumentShape",
     "Intrinsics",
     "JointParams",
+    "KinematicDatasetConfig",
+    "KinematicSetSpec",
     "Lens",
     "NoInstrumentError",
     "Occlusion",
