@@ -43,6 +43,7 @@ use pyo3::prelude::*;
 #[pymodule]
 fn _kflex(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("RangeError", py.get_type::<error::PyRangeError>())?;
     m.add(
         "NoInstrumentError",

@@ -57,6 +57,9 @@ from kflex._kflex import (
     WorkingRegions,
     segment,
 )
+from kflex._kflex import (
+    __version__ as __version__,
+)
 
 __all__ = [
     "AuroraNoise",

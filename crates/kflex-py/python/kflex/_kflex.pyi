@@ -13,6 +13,8 @@ BoolArray: TypeAlias = npt.NDArray[np.bool_]
 FloatsIn: TypeAlias = float | npt.NDArray[np.float64] | npt.NDArray[np.float32]
 FloatsOut: TypeAlias = float | npt.NDArray[np.float64]
 
+__version__: str
+
 class RangeError(ValueError):
     """A value outside its valid range; the bounds' ends may be infinite."""
 

@@ -42,6 +42,7 @@ def _write_atomically(target: Path, write: Callable[[IO[bytes]], None]) -> None:
             write(f)
             f.flush()
             os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)  # mkstemp's 0600 is for the temporary file only
         os.replace(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
