@@ -17,9 +17,13 @@
 #![warn(missing_docs)]
 
 mod error;
+#[cfg(feature = "index")]
+pub mod index;
 mod segment;
 
 pub use error::{EstimateError, Result};
+#[cfg(feature = "index")]
+pub use index::{FeatureIndex, IndexParams, Neighbour, Pose, ProjectionDims, SearchStats};
 /// The shared types this crate's API takes and returns.
 pub use kflex_model::{Bounds, Mask, RangeError, Roi};
 pub use segment::{SegmentParams, Segmentation, Segmenter, segment};
