@@ -60,6 +60,8 @@
 
 mod error;
 mod fusion;
+#[cfg(feature = "index")]
+pub mod index;
 #[cfg(feature = "onnx")]
 mod kbjae;
 #[cfg(feature = "onnx")]
@@ -73,6 +75,8 @@ pub use fusion::{
     AdaptiveKalman, AdaptiveParams, Estimate, FilterRate, Fusion, KalmanParams, Measurements,
     PaperKalman, SensorUse,
 };
+#[cfg(feature = "index")]
+pub use index::{FeatureIndex, IndexParams, Neighbour, Pose, ProjectionDims, SearchStats};
 #[cfg(feature = "onnx")]
 pub use kbjae::{CommandRate, KBJAE_INPUT, KBJAE_OUTPUT, Kbjae};
 /// The shared types this crate's API takes and returns.
