@@ -31,9 +31,10 @@ $(STAMP): requirements.txt
 build:
 	$(CARGO) build --release --locked -p kflex-cli
 
-# kflex-estimate's `onnx` feature (ONNX Runtime, KBJAE) is tested too: its
-# tests load the runtime library from .venv, which `make test` creates first.
-RUST_TEST_FEATURES := --features kflex-estimate/onnx
+# kflex-estimate's features are tested too: `onnx` (ONNX Runtime, KBJAE, the
+# SCNN; its tests load the runtime library from .venv, which `make test`
+# creates first) and `index` (the feature index; with `onnx`, IBJAE and LBHJAE).
+RUST_TEST_FEATURES := --features kflex-estimate/onnx,kflex-estimate/index
 test-rust: venv
 	$(CARGO) test --workspace --locked $(RUST_TEST_FEATURES)
 

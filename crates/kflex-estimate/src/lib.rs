@@ -10,7 +10,12 @@
 //! user's help, models checked against their cards and the shapes an
 //! estimator expects), KBJAE (`Kbjae`, the MLP on the command and its
 //! rate) and IBJAE's Siamese CNN (`Scnn`, a 48×48 silhouette to a 256-d
-//! embedding). IBJAE's retrieval comes with the estimation issue.
+//! embedding). With the feature `index`: the exact feature index
+//! ([`index`]); with both, IBJAE whole (`Ibjae`: segmentation, SCNN and
+//! retrieval over one database per working band, built by
+//! `build_band_database`, each reading with its own uncertainty) and LBHJAE
+//! (`Lbhjae::step(command, dt, frame)`: KBJAE every tick, IBJAE when a
+//! frame arrives, fused by either filter).
 //!
 //! ## Fusion
 //!
@@ -60,10 +65,14 @@
 
 mod error;
 mod fusion;
+#[cfg(all(feature = "onnx", feature = "index"))]
+mod ibjae;
 #[cfg(feature = "index")]
 pub mod index;
 #[cfg(feature = "onnx")]
 mod kbjae;
+#[cfg(all(feature = "onnx", feature = "index"))]
+mod lbhjae;
 #[cfg(feature = "onnx")]
 pub mod onnx;
 #[cfg(feature = "onnx")]
@@ -75,12 +84,16 @@ pub use fusion::{
     AdaptiveKalman, AdaptiveParams, Estimate, FilterRate, Fusion, KalmanParams, Measurements,
     PaperKalman, SensorUse,
 };
+#[cfg(all(feature = "onnx", feature = "index"))]
+pub use ibjae::{BandDatabase, Ibjae, IbjaeReading, RgbView, build_band_database, keys};
 #[cfg(feature = "index")]
 pub use index::{FeatureIndex, IndexParams, Neighbour, Pose, ProjectionDims, SearchStats};
 #[cfg(feature = "onnx")]
 pub use kbjae::{CommandRate, KBJAE_INPUT, KBJAE_OUTPUT, Kbjae};
 /// The shared types this crate's API takes and returns.
 pub use kflex_model::{Bounds, Mask, RangeError, Roi};
+#[cfg(all(feature = "onnx", feature = "index"))]
+pub use lbhjae::{Lbhjae, LbhjaeEstimate};
 #[cfg(feature = "onnx")]
 pub use scnn::{EMBEDDING_DIM, SCNN_INPUT, SCNN_OUTPUT, SCNN_SIDE, Scnn};
 pub use segment::{SegmentParams, Segmentation, Segmenter, segment};
