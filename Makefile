@@ -11,7 +11,7 @@ STAMP := $(VENV)/.installed
 CARGO ?= cargo
 RUN_ARGS ?=
 
-.PHONY: run test venv build test-rust test-embedded test-python lint fmt bench fit loops gallery clean
+.PHONY: run test venv build test-rust test-embedded test-python lint fmt bench index-bench fit loops gallery clean
 
 run: venv build
 	./target/release/kflex-cli run $(RUN_ARGS)
@@ -31,8 +31,12 @@ $(STAMP): requirements.txt
 build:
 	$(CARGO) build --release --locked -p kflex-cli
 
+# Opt-in features whose tests `make test` runs too (kflex-estimate's `index`:
+# the feature index on kiddo; off by default so an embedding build stays lean).
+TEST_FEATURES := --features kflex-estimate/index
+
 test-rust:
-	$(CARGO) test --workspace --locked
+	$(CARGO) test --workspace --locked $(TEST_FEATURES)
 
 # The crates a controller embeds, as it builds them: without default features
 # (no rapier3d, parry3d or image; see ARCHITECTURE.md).
@@ -46,14 +50,20 @@ test-python: venv
 lint:
 	$(CARGO) fmt --all --check
 	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
+	$(CARGO) clippy --workspace --all-targets --locked $(TEST_FEATURES) -- -D warnings
 	$(CARGO) clippy $(EMBEDDED) --all-targets --locked --no-default-features -- -D warnings
 
 fmt:
 	$(CARGO) fmt --all
 
 bench:
-	$(CARGO) bench -p kflex-model -p kflex-estimate
+	$(CARGO) bench -p kflex-model -p kflex-estimate --features kflex-estimate/index
 	python3 tools/bench_table.py
+
+# the feature index against a linear scan, scipy's cKDTree and faiss's
+# IndexFlatL2 on the same data (its own venv, tools/.venv-bench)
+index-bench:
+	$(PYTHON) tools/index_bench.py
 
 fit:
 	$(CARGO) run --release --locked -p kflex-control --example fit_calibration
