@@ -11,7 +11,7 @@ STAMP := $(VENV)/.installed
 CARGO ?= cargo
 RUN_ARGS ?=
 
-.PHONY: run test venv build test-rust test-embedded py-module test-python lint fmt bench fit loops gallery clean
+.PHONY: run test venv build test-rust test-embedded py-module test-python lint fmt bench index-bench fit loops gallery clean
 
 run: venv build
 	./target/release/kflex-cli run $(RUN_ARGS)
@@ -55,6 +55,7 @@ test-python: venv py-module
 
 lint:
 	$(CARGO) fmt --all --check
+	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
 	$(CARGO) clippy --workspace --all-targets --locked $(RUST_TEST_FEATURES) -- -D warnings
 	$(CARGO) clippy $(EMBEDDED) --all-targets --locked --no-default-features -- -D warnings
 
@@ -62,8 +63,13 @@ fmt:
 	$(CARGO) fmt --all
 
 bench:
-	$(CARGO) bench -p kflex-model -p kflex-estimate
+	$(CARGO) bench -p kflex-model -p kflex-estimate --features kflex-estimate/index
 	python3 tools/bench_table.py
+
+# the feature index against a linear scan, scipy's cKDTree and faiss's
+# IndexFlatL2 on the same data (its own venv, tools/.venv-bench)
+index-bench:
+	$(PYTHON) tools/index_bench.py
 
 fit:
 	$(CARGO) run --release --locked -p kflex-control --example fit_calibration

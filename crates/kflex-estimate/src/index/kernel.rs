@@ -74,86 +74,79 @@ fn squared_distance_portable(a: &[f32], b: &[f32]) -> f32 {
     reduce(acc)
 }
 
-/// As [`squared_distance_portable`], eight lanes per AVX2 instruction
-/// (separate multiply and add, no FMA: the same roundings).
+/// Defines `$name`, [`squared_distance_portable`] with `$width` lanes per
+/// SIMD instruction of `$feature` (`LANES / $width` registers; separate
+/// multiply and add, no FMA: the same roundings, so the same bits).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn squared_distance_avx2(a: &[f32], b: &[f32]) -> f32 {
-    use std::arch::x86_64::{
-        __m256, _mm256_add_ps, _mm256_loadu_ps, _mm256_mul_ps, _mm256_setzero_ps, _mm256_storeu_ps,
-        _mm256_sub_ps,
-    };
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn step(acc: &mut [__m256; 4], x: &[f32; LANES], y: &[f32; LANES]) {
-        for (v, acc) in acc.iter_mut().enumerate() {
-            // SAFETY: x and y hold LANES = 4 × 8 floats; unaligned loads.
-            let (p, q) = unsafe {
-                (
-                    _mm256_loadu_ps(x.as_ptr().add(8 * v)),
-                    _mm256_loadu_ps(y.as_ptr().add(8 * v)),
-                )
-            };
-            let d = _mm256_sub_ps(p, q);
-            *acc = _mm256_add_ps(*acc, _mm256_mul_ps(d, d));
+macro_rules! simd_squared_distance {
+    ($name:ident, $feature:literal, $width:literal, $vec:ident,
+     $load:ident, $store:ident, $zero:ident, $sub:ident, $mul:ident, $add:ident) => {
+        #[target_feature(enable = $feature)]
+        fn $name(a: &[f32], b: &[f32]) -> f32 {
+            use std::arch::x86_64::{$add, $load, $mul, $store, $sub, $vec, $zero};
+            const REGS: usize = LANES / $width;
+            #[target_feature(enable = $feature)]
+            #[inline]
+            fn step(acc: &mut [$vec; REGS], x: &[f32; LANES], y: &[f32; LANES]) {
+                for (v, acc) in acc.iter_mut().enumerate() {
+                    // SAFETY: x and y hold LANES = REGS × $width floats;
+                    // unaligned loads.
+                    let (p, q) = unsafe {
+                        (
+                            $load(x.as_ptr().add($width * v)),
+                            $load(y.as_ptr().add($width * v)),
+                        )
+                    };
+                    let d = $sub(p, q);
+                    *acc = $add(*acc, $mul(d, d));
+                }
+            }
+            let mut acc = [$zero(); REGS];
+            let (ca, _) = a.as_chunks::<LANES>();
+            let (cb, _) = b.as_chunks::<LANES>();
+            for (x, y) in ca.iter().zip(cb) {
+                step(&mut acc, x, y);
+            }
+            if let Some((x, y)) = padded_tail(a, b) {
+                step(&mut acc, &x, &y);
+            }
+            let mut lanes = [0.0_f32; LANES];
+            for (v, acc) in acc.iter().enumerate() {
+                // SAFETY: lanes holds REGS × $width floats; unaligned store.
+                unsafe { $store(lanes.as_mut_ptr().add($width * v), *acc) };
+            }
+            reduce(lanes)
         }
-    }
-    let mut acc = [_mm256_setzero_ps(); 4];
-    let (ca, _) = a.as_chunks::<LANES>();
-    let (cb, _) = b.as_chunks::<LANES>();
-    for (x, y) in ca.iter().zip(cb) {
-        step(&mut acc, x, y);
-    }
-    if let Some((x, y)) = padded_tail(a, b) {
-        step(&mut acc, &x, &y);
-    }
-    let mut lanes = [0.0_f32; LANES];
-    for (v, acc) in acc.iter().enumerate() {
-        // SAFETY: lanes holds 4 × 8 floats; unaligned store.
-        unsafe { _mm256_storeu_ps(lanes.as_mut_ptr().add(8 * v), *acc) };
-    }
-    reduce(lanes)
+    };
 }
 
-/// As [`squared_distance_portable`], sixteen lanes per AVX-512 instruction.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn squared_distance_avx512(a: &[f32], b: &[f32]) -> f32 {
-    use std::arch::x86_64::{
-        __m512, _mm512_add_ps, _mm512_loadu_ps, _mm512_mul_ps, _mm512_setzero_ps, _mm512_storeu_ps,
-        _mm512_sub_ps,
-    };
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    fn step(acc: &mut [__m512; 2], x: &[f32; LANES], y: &[f32; LANES]) {
-        for (v, acc) in acc.iter_mut().enumerate() {
-            // SAFETY: x and y hold LANES = 2 × 16 floats; unaligned loads.
-            let (p, q) = unsafe {
-                (
-                    _mm512_loadu_ps(x.as_ptr().add(16 * v)),
-                    _mm512_loadu_ps(y.as_ptr().add(16 * v)),
-                )
-            };
-            let d = _mm512_sub_ps(p, q);
-            *acc = _mm512_add_ps(*acc, _mm512_mul_ps(d, d));
-        }
-    }
-    let mut acc = [_mm512_setzero_ps(); 2];
-    let (ca, _) = a.as_chunks::<LANES>();
-    let (cb, _) = b.as_chunks::<LANES>();
-    for (x, y) in ca.iter().zip(cb) {
-        step(&mut acc, x, y);
-    }
-    if let Some((x, y)) = padded_tail(a, b) {
-        step(&mut acc, &x, &y);
-    }
-    let mut lanes = [0.0_f32; LANES];
-    for (v, acc) in acc.iter().enumerate() {
-        // SAFETY: lanes holds 2 × 16 floats; unaligned store.
-        unsafe { _mm512_storeu_ps(lanes.as_mut_ptr().add(16 * v), *acc) };
-    }
-    reduce(lanes)
-}
+simd_squared_distance!(
+    squared_distance_avx2,
+    "avx2",
+    8,
+    __m256,
+    _mm256_loadu_ps,
+    _mm256_storeu_ps,
+    _mm256_setzero_ps,
+    _mm256_sub_ps,
+    _mm256_mul_ps,
+    _mm256_add_ps
+);
+
+#[cfg(target_arch = "x86_64")]
+simd_squared_distance!(
+    squared_distance_avx512,
+    "avx512f",
+    16,
+    __m512,
+    _mm512_loadu_ps,
+    _mm512_storeu_ps,
+    _mm512_setzero_ps,
+    _mm512_sub_ps,
+    _mm512_mul_ps,
+    _mm512_add_ps
+);
 
 /// Which build of the distance kernel this CPU runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

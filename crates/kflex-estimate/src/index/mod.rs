@@ -211,6 +211,33 @@ fn check_values(what: &'static str, rows: &[f32], dim: usize) -> Result<()> {
     Ok(())
 }
 
+/// The number of `dim`-wide rows in `values`, which must be whole.
+fn whole_rows(what: &'static str, values: &[f32], dim: usize) -> Result<usize> {
+    let n = values.len() / dim;
+    if n * dim == values.len() {
+        Ok(n)
+    } else {
+        Err(EstimateError::Length {
+            what,
+            expected: (n + 1) * dim,
+            got: values.len(),
+        })
+    }
+}
+
+/// Checks a buffer holds `expected` values.
+fn same_length(what: &'static str, expected: usize, got: usize) -> Result<()> {
+    if expected == got {
+        Ok(())
+    } else {
+        Err(EstimateError::Length {
+            what,
+            expected,
+            got,
+        })
+    }
+}
+
 /// Checks the poses are finite.
 fn check_poses(poses: &[Pose]) -> Result<()> {
     for (index, p) in poses.iter().enumerate() {
@@ -303,21 +330,12 @@ impl FeatureIndex {
         if features.is_empty() {
             return Err(EstimateError::EmptyIndex);
         }
-        let n = features.len() / dim;
-        if n * dim != features.len() {
-            return Err(EstimateError::Length {
-                what: "features (whole rows of the feature dimension)",
-                expected: (n + 1) * dim,
-                got: features.len(),
-            });
-        }
-        if poses.len() != n {
-            return Err(EstimateError::Length {
-                what: "poses (one per feature vector)",
-                expected: n,
-                got: poses.len(),
-            });
-        }
+        let n = whole_rows(
+            "features (whole rows of the feature dimension)",
+            &features,
+            dim,
+        )?;
+        same_length("poses (one per feature vector)", n, poses.len())?;
         check_values("feature vector", &features, dim)?;
         check_poses(&poses)?;
         let dims = projection.get();
@@ -517,21 +535,12 @@ impl FeatureIndex {
     /// has not one slot per row; otherwise as [`Self::nearest`], naming the
     /// first bad row (`out` is then left as it was).
     pub fn nearest_batch_into(&self, queries: &[f32], out: &mut [Neighbour]) -> Result<()> {
-        let n = queries.len() / self.dim;
-        if n * self.dim != queries.len() {
-            return Err(EstimateError::Length {
-                what: "queries (whole rows of the feature dimension)",
-                expected: (n + 1) * self.dim,
-                got: queries.len(),
-            });
-        }
-        if out.len() != n {
-            return Err(EstimateError::Length {
-                what: "output (one neighbour per query)",
-                expected: n,
-                got: out.len(),
-            });
-        }
+        let n = whole_rows(
+            "queries (whole rows of the feature dimension)",
+            queries,
+            self.dim,
+        )?;
+        same_length("output (one neighbour per query)", n, out.len())?;
         for (i, q) in queries.chunks_exact(self.dim).enumerate() {
             self.check_query(q, i)?;
         }
