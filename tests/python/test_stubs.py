@@ -48,6 +48,8 @@ SAMPLES = {
     "Occlusion": lambda: kflex.Occlusion(fraction=0.1, position=0.5),
     "FrameParams": lambda: kflex.FrameParams(),
     "SegmentParams": lambda: kflex.SegmentParams(),
+    "KalmanParams": lambda: kflex.KalmanParams(),
+    "AdaptiveParams": lambda: kflex.AdaptiveParams(),
 }
 
 

@@ -27,6 +27,7 @@
 mod array;
 mod camera;
 mod error;
+mod fusion;
 mod kinematics;
 mod plant;
 mod render;
@@ -78,6 +79,11 @@ fn _kflex(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<segment::PySegmentParams>()?;
     m.add_class::<segment::PySegmentation>()?;
     m.add_class::<segment::PySegmenter>()?;
+    m.add_class::<fusion::PyKalmanParams>()?;
+    m.add_class::<fusion::PyAdaptiveParams>()?;
+    m.add_class::<fusion::PyEstimate>()?;
+    m.add_class::<fusion::PyPaperKalman>()?;
+    m.add_class::<fusion::PyAdaptiveKalman>()?;
     m.add_function(wrap_pyfunction!(segment::segment, m)?)?;
     Ok(())
 }
