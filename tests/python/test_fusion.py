@@ -14,19 +14,30 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools" / "golden"))
-import kalman_golden  # noqa: E402
+import kalman_golden
 
 
 def test_the_paper_filter_equals_filterpy_from_python() -> None:
     case = kalman_golden.cases()[0]
     expected = kalman_golden.run(case)
-    kf = kflex.PaperKalman(kflex.KalmanParams(model_dt_s=case.model_dt, sigma_a=case.sigma_a,
-                                              sigma_z_deg=list(case.sigma_z)))
+    kf = kflex.PaperKalman(
+        kflex.KalmanParams(
+            model_dt_s=case.model_dt,
+            sigma_a=case.sigma_a,
+            sigma_z_deg=list(case.sigma_z),
+        )
+    )
     z1, z2 = expected[:, 1], expected[:, 2]
     out = kf.run(case.tick_s, z1, z2)
-    np.testing.assert_allclose(out["theta_hat_deg"], expected[:, 3], rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(out["theta_hat_rate_deg_per_s"], expected[:, 4], rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(out["theta_var_deg2"], expected[:, 5], rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(
+        out["theta_hat_deg"], expected[:, 3], rtol=1e-9, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        out["theta_hat_rate_deg_per_s"], expected[:, 4], rtol=1e-9, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        out["theta_var_deg2"], expected[:, 5], rtol=1e-9, atol=1e-15
+    )
     assert (out["ibjae_used"] == ~np.isnan(z2)).all()
 
 
@@ -34,7 +45,11 @@ def test_a_run_equals_stepping_tick_by_tick() -> None:
     rng = np.random.default_rng(3)
     t = np.arange(400) * 0.01
     z1 = 25 * np.sin(t) + 25 + rng.normal(0, 1, t.size)
-    z2 = np.where(np.arange(t.size) % 3 == 0, 25 * np.sin(t) + 25 + rng.normal(0, 2, t.size), np.nan)
+    z2 = np.where(
+        np.arange(t.size) % 3 == 0,
+        25 * np.sin(t) + 25 + rng.normal(0, 2, t.size),
+        np.nan,
+    )
     z2[150] = 90.0  # an outlier the gate should refuse
     whole = kflex.AdaptiveKalman().run(0.01, z1, z2)
     kf = kflex.AdaptiveKalman()
