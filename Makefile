@@ -11,7 +11,7 @@ STAMP := $(VENV)/.installed
 CARGO ?= cargo
 RUN_ARGS ?=
 
-.PHONY: run test venv build test-rust test-embedded py-module test-python training-venv test-training smoke train lint fmt bench fit loops gallery clean
+.PHONY: run test venv build test-rust test-embedded py-module test-python training-venv test-training smoke train lint fmt bench index-bench fit loops gallery clean
 
 run: venv build
 	./target/release/kflex-cli run $(RUN_ARGS)
@@ -31,9 +31,10 @@ $(STAMP): requirements.txt
 build:
 	$(CARGO) build --release --locked -p kflex-cli
 
-# kflex-estimate's `onnx` feature (ONNX Runtime, KBJAE) is tested too: its
-# tests load the runtime library from .venv, which `make test` creates first.
-RUST_TEST_FEATURES := --features kflex-estimate/onnx
+# kflex-estimate's features are tested too: `onnx` (ONNX Runtime, KBJAE, the
+# SCNN; its tests load the runtime library from .venv, which `make test`
+# creates first) and `index` (the feature index; with `onnx`, IBJAE and LBHJAE).
+RUST_TEST_FEATURES := --features kflex-estimate/onnx,kflex-estimate/index
 test-rust: venv
 	$(CARGO) test --workspace --locked $(RUST_TEST_FEATURES)
 
@@ -91,6 +92,7 @@ train: training-venv py-module
 
 lint:
 	$(CARGO) fmt --all --check
+	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
 	$(CARGO) clippy --workspace --all-targets --locked $(RUST_TEST_FEATURES) -- -D warnings
 	$(CARGO) clippy $(EMBEDDED) --all-targets --locked --no-default-features -- -D warnings
 
@@ -98,8 +100,13 @@ fmt:
 	$(CARGO) fmt --all
 
 bench:
-	$(CARGO) bench -p kflex-model -p kflex-estimate
+	$(CARGO) bench -p kflex-model -p kflex-estimate --features kflex-estimate/index
 	python3 tools/bench_table.py
+
+# the feature index against a linear scan, scipy's cKDTree and faiss's
+# IndexFlatL2 on the same data (its own venv, tools/.venv-bench)
+index-bench:
+	$(PYTHON) tools/index_bench.py
 
 fit:
 	$(CARGO) run --release --locked -p kflex-control --example fit_calibration

@@ -24,6 +24,14 @@ GOALS = {
     "segment_1920x1080": ("segmentation, 1920x1080, kept Segmenter", 5e-3, "<= 5 ms median"),
     "segment_640x480_one_off": ("segmentation, 640x480, one-off", None, ""),
     "segment_1920x1080_one_off": ("segmentation, 1920x1080, one-off", None, ""),
+    # the feature index (kflex-estimate feature `index`), batch 1, 256-d; the
+    # ratio goals (>= 10x a linear scan, faster than cKDTree and faiss) are
+    # checked by tools/index_bench.py on the same data
+    **{
+        f"index_query/{kind}/{n}": (f"feature index, {label}, N = {n:,}", None, "")
+        for n in (1_000, 6_000, 10_000, 100_000)
+        for kind, label in (("exact_index", "exact index"), ("linear_scan", "linear scan"))
+    },
 }
 
 

@@ -17,9 +17,17 @@ built here with the `onnx` package, with weights from a fixed seed:
   average pooling, a fully connected layer to 256 and a sigmoid. Beside it
   `scnn_test.expected.json`: four masks and numpy's float64 embeddings.
 
+With `--paper-size DIR` it writes instead, for timing only (random weights,
+not committed): `scnn_table1.onnx`, Table I's network padded for 48x48
+(Conv 5x5/32, then 3x3 convs of 64, 128, 256, 256, each followed by ReLU and
+MaxPool(3, 2, ceil) so 48 -> 24 -> 12 -> 6 -> 3 -> 1, then two
+fully connected layers of 256 with sigmoids), and `kbjae_table2.onnx`,
+Table II's 2 -> 200 -> 200 -> 200 -> 1 with LeakyReLU.
+
 Usage:
     .venv/bin/python tools/make_test_models.py            # write the files
     .venv/bin/python tools/make_test_models.py --out DIR  # other folder
+    .venv/bin/python tools/make_test_models.py --paper-size DIR
 
 Requires numpy and onnx.
 """
@@ -193,10 +201,70 @@ def write(out: Path) -> None:
     (out / "scnn_test.expected.json").write_text(json.dumps(expected) + "\n")
 
 
+def paper_size_models(out: Path) -> None:
+    """Table I's SCNN and Table II's MLP with random weights, for timing."""
+    rng = np.random.default_rng(3)
+    out.mkdir(parents=True, exist_ok=True)
+    inits, nodes = [], []
+    h, c_in = "silhouette", 1
+    for i, (k, c) in enumerate([(5, 32), (3, 64), (3, 128), (3, 256), (3, 256)]):
+        w = rng.normal(0.0, np.sqrt(2.0 / (k * k * c_in)), (c, c_in, k, k)).astype(np.float32)
+        inits += [numpy_helper.from_array(w, f"cw{i}"), numpy_helper.from_array(np.zeros(c, np.float32), f"cb{i}")]
+        pad = k // 2
+        nodes += [
+            helper.make_node("Conv", [h, f"cw{i}", f"cb{i}"], [f"c{i}"], kernel_shape=[k, k], pads=[pad] * 4),
+            helper.make_node("Relu", [f"c{i}"], [f"r{i}"]),
+            helper.make_node("MaxPool", [f"r{i}"], [f"p{i}"], kernel_shape=[3, 3], strides=[2, 2], ceil_mode=1),
+        ]
+        h, c_in = f"p{i}", c
+    nodes.append(helper.make_node("Flatten", [h], ["flat"], axis=1))
+    for i, (a, b) in enumerate([(256, 256), (256, 256)]):
+        inits += [numpy_helper.from_array(rng.normal(0.0, np.sqrt(1.0 / a), (a, b)).astype(np.float32), f"fw{i}"),
+                  numpy_helper.from_array(np.zeros(b, np.float32), f"fb{i}")]
+        out_name = "embedding" if i == 1 else f"s{i}"
+        nodes += [helper.make_node("Gemm", ["flat" if i == 0 else "s0", f"fw{i}", f"fb{i}"], [f"z{i}"]),
+                  helper.make_node("Sigmoid", [f"z{i}"], [out_name])]
+    graph = helper.make_graph(
+        nodes, "scnn_table1",
+        [helper.make_tensor_value_info("silhouette", TensorProto.FLOAT, ["batch", 1, 48, 48])],
+        [helper.make_tensor_value_info("embedding", TensorProto.FLOAT, ["batch", 256])], inits)
+    m = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], producer_name="kflex tools")
+    m.ir_version = 8
+    onnx.checker.check_model(m)
+    (out / "scnn_table1.onnx").write_bytes(m.SerializeToString())
+    w = []
+    for a, b in [(2, 200), (200, 200), (200, 200), (200, 1)]:
+        w += [rng.normal(0.0, np.sqrt(2.0 / a), (a, b)).astype(np.float32), np.zeros(b, np.float32)]
+    inits = [numpy_helper.from_array(OFFSET.astype(np.float32), "offset"),
+             numpy_helper.from_array(SCALE.astype(np.float32), "scale")]
+    nodes = [helper.make_node("Sub", ["theta_and_rate", "offset"], ["c"]), helper.make_node("Mul", ["c", "scale"], ["h0"])]
+    h = "h0"
+    for i in range(4):
+        inits += [numpy_helper.from_array(w[2 * i], f"w{i}"), numpy_helper.from_array(w[2 * i + 1], f"b{i}")]
+        z = "theta_error" if i == 3 else f"z{i}"
+        nodes.append(helper.make_node("Gemm", [h, f"w{i}", f"b{i}"], [z]))
+        if i < 3:
+            nodes.append(helper.make_node("LeakyRelu", [z], [f"a{i}"], alpha=SLOPE))
+            h = f"a{i}"
+    graph = helper.make_graph(
+        nodes, "kbjae_table2",
+        [helper.make_tensor_value_info("theta_and_rate", TensorProto.FLOAT, ["batch", 2])],
+        [helper.make_tensor_value_info("theta_error", TensorProto.FLOAT, ["batch", 1])], inits)
+    m = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], producer_name="kflex tools")
+    m.ir_version = 8
+    onnx.checker.check_model(m)
+    (out / "kbjae_table2.onnx").write_bytes(m.SerializeToString())
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    ap.add_argument("--paper-size", type=Path, help="write the paper-size timing models here instead")
     args = ap.parse_args()
+    if args.paper_size is not None:
+        paper_size_models(args.paper_size)
+        print(f"wrote the paper-size timing models to {args.paper_size}")
+        return 0
     write(args.out)
     print(f"wrote the test models to {args.out}")
     return 0

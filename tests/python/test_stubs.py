@@ -51,6 +51,8 @@ SAMPLES = {
     "KinematicSetSpec": lambda: kflex.KinematicSetSpec(amplitude_deg=35.0, frequency_hz=0.159, train=True),
     "KinematicDatasetConfig": lambda: kflex.KinematicDatasetConfig(),
     "ImagePairsConfig": lambda: kflex.ImagePairsConfig(),
+    "KalmanParams": lambda: kflex.KalmanParams(),
+    "AdaptiveParams": lambda: kflex.AdaptiveParams(),
 }
 
 

@@ -1,5 +1,7 @@
 //! The one error type of `kflex-estimate`.
 
+use std::path::PathBuf;
+
 use kflex_model::{ModelError, RangeError};
 use thiserror::Error;
 
@@ -84,15 +86,64 @@ pub enum EstimateError {
         /// What the model has.
         found: String,
     },
-    /// A buffer whose length does not fit the batch.
-    #[error("{what}: {got} values given, {expected} expected")]
-    BufferSize {
-        /// Which buffer.
+    /// A buffer (feature vectors, poses, a query, an output slice) whose
+    /// length does not fit the shape it is given with.
+    #[error("{what}: expected {expected} values, got {got}")]
+    Length {
+        /// Which buffer, and the shape it must have.
         what: &'static str,
         /// Values expected.
         expected: usize,
         /// Values given.
         got: usize,
+    },
+    /// A feature vector, a query or a pose holds NaN or an infinity.
+    #[error("{what} {index} is not finite: component {component} is {value}")]
+    NonFinite {
+        /// Which input (`"feature vector"`, `"query"`, `"pose"`).
+        what: &'static str,
+        /// Which vector (its row), counted from 0.
+        index: usize,
+        /// Which component of it, counted from 0.
+        component: usize,
+        /// The value found.
+        value: f64,
+    },
+    /// A feature index with no points: there is no nearest neighbour to return.
+    #[error("the feature index is empty: at least one feature vector is needed")]
+    EmptyIndex,
+    /// Reading or writing a file failed (missing, no permission, disk full).
+    /// `kind` tells a missing file ([`std::io::ErrorKind::NotFound`]) from the rest.
+    #[error("{}: {message}", .path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What kind of failure, as the operating system reported it.
+        kind: std::io::ErrorKind,
+        /// The operating system's message.
+        message: String,
+    },
+    /// A feature-index file that is not one, or is damaged: wrong magic bytes,
+    /// truncated, a checksum that does not match, values out of place.
+    #[error("{}: not a valid kflex feature-index file: {reason}", .path.display())]
+    IndexCorrupt {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A feature-index file written in a format version this build cannot read.
+    #[error(
+        "{}: feature-index file format version {found}; this build reads version {supported} (rebuild the database)",
+        .path.display()
+    )]
+    IndexVersion {
+        /// The file.
+        path: PathBuf,
+        /// The version the file declares.
+        found: u32,
+        /// The version this build reads.
+        supported: u32,
     },
 }
 
@@ -105,6 +156,18 @@ impl EstimateError {
             Self::OutOfRange(e) => Some(e),
             Self::Model(e) => e.range(),
             _ => None,
+        }
+    }
+}
+
+impl EstimateError {
+    /// An [`EstimateError::Io`] for `path` from `err`.
+    #[cfg(feature = "index")]
+    pub(crate) fn io(path: &std::path::Path, err: &std::io::Error) -> Self {
+        Self::Io {
+            path: path.to_path_buf(),
+            kind: err.kind(),
+            message: err.to_string(),
         }
     }
 }

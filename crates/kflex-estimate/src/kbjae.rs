@@ -129,12 +129,12 @@ impl Kbjae {
     /// (throughput: one model call).
     ///
     /// # Errors
-    /// [`crate::EstimateError::BufferSize`] when the slices differ in length;
+    /// [`crate::EstimateError::Length`] when the slices differ in length;
     /// [`crate::EstimateError::Model`] for a non-finite input;
     /// [`crate::EstimateError::Onnx`] when the model fails.
     pub fn errors(&mut self, theta_deg: &[f32], rate_deg_per_s: &[f32]) -> Result<Vec<f32>> {
         if theta_deg.len() != rate_deg_per_s.len() {
-            return Err(crate::EstimateError::BufferSize {
+            return Err(crate::EstimateError::Length {
                 what: "rates",
                 expected: theta_deg.len(),
                 got: rate_deg_per_s.len(),

@@ -301,7 +301,7 @@ impl OnnxModel {
     /// `input`, writing theirs into `output`.
     ///
     /// # Errors
-    /// [`EstimateError::BufferSize`] when a buffer does not hold `batch`
+    /// [`EstimateError::Length`] when a buffer does not hold `batch`
     /// items; [`EstimateError::Onnx`] when ONNX Runtime fails.
     pub fn run(&mut self, input: &[f32], batch: usize, output: &mut [f32]) -> Result<()> {
         let (per_in, per_out) = (self.input.per_item(), self.output.per_item());
@@ -310,7 +310,7 @@ impl OnnxModel {
             ("model output", output.len(), batch * per_out),
         ] {
             if got != want {
-                return Err(EstimateError::BufferSize {
+                return Err(EstimateError::Length {
                     what,
                     expected: want,
                     got,
@@ -341,7 +341,7 @@ impl OnnxModel {
             })?;
         let (_, data) = value.try_extract_tensor::<f32>().map_err(onnx)?;
         if data.len() != output.len() {
-            return Err(EstimateError::BufferSize {
+            return Err(EstimateError::Length {
                 what: "model result",
                 expected: output.len(),
                 got: data.len(),

@@ -59,7 +59,7 @@ impl Scnn {
     /// Embeds one 48×48 silhouette into `out`.
     ///
     /// # Errors
-    /// [`EstimateError::BufferSize`] for a mask that is not 48×48;
+    /// [`EstimateError::Length`] for a mask that is not 48×48;
     /// [`EstimateError::Onnx`] when the model fails.
     pub fn embed(&mut self, mask: &Mask, out: &mut [f32; EMBEDDING_DIM]) -> Result<()> {
         fill(mask, &mut self.input)?;
@@ -85,7 +85,7 @@ impl Scnn {
 /// A 48×48 mask as the SCNN's input: 1.0 instrument, 0.0 background.
 fn fill(mask: &Mask, out: &mut [f32]) -> Result<()> {
     if mask.width() != SCNN_SIDE || mask.height() != SCNN_SIDE {
-        return Err(EstimateError::BufferSize {
+        return Err(EstimateError::Length {
             what: "SCNN silhouette pixels (48×48)",
             expected: PIXELS,
             got: (mask.width() * mask.height()) as usize,

@@ -71,7 +71,7 @@ fn kbjae_gives_the_networks_output_one_at_a_time_and_batched() {
     }
     assert!(matches!(
         k.errors(&theta, &rate[1..]),
-        Err(EstimateError::BufferSize { .. })
+        Err(EstimateError::Length { .. })
     ));
 }
 
@@ -130,7 +130,7 @@ fn a_model_with_other_names_is_refused_naming_both() {
     m.run(&[25.0, 0.0, 30.0, 5.0], 2, &mut out).unwrap();
     assert!(matches!(
         m.run(&[25.0, 0.0, 30.0], 2, &mut out),
-        Err(EstimateError::BufferSize { .. })
+        Err(EstimateError::Length { .. })
     ));
 }
 
@@ -243,7 +243,7 @@ fn scnn_embeds_silhouettes_as_the_network_does() {
     let wrong = kflex_model::Mask::new(32, 32).unwrap();
     assert!(matches!(
         scnn.embed(&wrong, &mut one),
-        Err(EstimateError::BufferSize { .. })
+        Err(EstimateError::Length { .. })
     ));
     // a KBJAE model is not an SCNN
     assert!(matches!(

@@ -382,6 +382,69 @@ class Segmenter:
 
 def segment(rgb: npt.NDArray[np.uint8], roi: Roi, params: SegmentParams | None = None) -> Segmentation | None: ...
 
+# ---- fusion (LBHJAE's Kalman filters) ------------------------------------------
+
+class KalmanParams(_Params):
+    model_dt_s: float
+    sigma_a: float
+    sigma_z_deg: list[float]
+    rate: str
+
+class AdaptiveParams(_Params):
+    accel_psd_deg2_per_s3: float
+    bias_sigma_deg: float
+    bias_time_s: float
+    initial_sigma_z_deg: list[float]
+    min_sigma_z_deg: float
+    noise_time_s: float
+    gate: float
+
+class Estimate:
+    theta_hat_deg: float
+    theta_hat_rate_deg_per_s: float
+    covariance: FloatArray
+    kbjae: str
+    ibjae: str
+    ibjae_nis: float | None
+
+class PaperKalman:
+    def __init__(self, params: KalmanParams | None = None) -> None: ...
+    def step(
+        self,
+        dt_s: float,
+        kbjae_deg: float | None = None,
+        ibjae_deg: float | None = None,
+        ibjae_sigma_deg: float | None = None,
+    ) -> Estimate: ...
+    def run(
+        self,
+        dt_s: float,
+        kbjae_deg: npt.ArrayLike | None = None,
+        ibjae_deg: npt.ArrayLike | None = None,
+        ibjae_sigma_deg: npt.ArrayLike | None = None,
+    ) -> dict[str, npt.NDArray[Any]]: ...
+    def estimate(self) -> Estimate: ...
+    def reset(self) -> None: ...
+
+class AdaptiveKalman:
+    def __init__(self, params: AdaptiveParams | None = None) -> None: ...
+    def step(
+        self,
+        dt_s: float,
+        kbjae_deg: float | None = None,
+        ibjae_deg: float | None = None,
+        ibjae_sigma_deg: float | None = None,
+    ) -> Estimate: ...
+    def run(
+        self,
+        dt_s: float,
+        kbjae_deg: npt.ArrayLike | None = None,
+        ibjae_deg: npt.ArrayLike | None = None,
+        ibjae_sigma_deg: npt.ArrayLike | None = None,
+    ) -> dict[str, npt.NDArray[Any]]: ...
+    def estimate(self) -> Estimate: ...
+    def reset(self) -> None: ...
+
 # ---- training data -------------------------------------------------------------
 
 Arrays: TypeAlias = dict[str, npt.NDArray[Any]]

@@ -1,0 +1,399 @@
+//! IBJAE: image-based joint angle estimation (the paper's Section II-C-1):
+//! segment the frame in the working region, embed the 48×48 silhouette with
+//! the SCNN, and read the pose of the nearest rendered silhouette (cargo
+//! features `onnx` and `index`).
+//!
+//! **Databases, one per working band.** Over the full pose range one region
+//! cannot resolve 1° at every translation, so the camera's range is cut
+//! into bands ([`kflex_model::WorkingRegions`]), each with its own region;
+//! [`build_band_database`] renders the nominal instrument's silhouettes over
+//! a (θ, d) grid of one band, through the same camera, lens and region as the
+//! frames, embeds them and indexes them. The file records the SCNN's SHA-256,
+//! the region and the grid; [`Ibjae::new`] refuses a database built with
+//! another model.
+//!
+//! **Confidence.** Each reading carries `sigma_deg`: its distance to the
+//! nearest silhouette expressed in degrees of bend, using how far apart the
+//! database's own neighbouring bends lie in feature space (the median over
+//! the grid of distance per degree, measured at build time). A frame that
+//! matches nothing well (the tip hidden, a wrong segmentation) reads as
+//! uncertain; [`crate::AdaptiveKalman`] takes it as the camera's noise.
+
+use kflex_model::{Camera, Instrument, Mask, Rasterizer, Roi, WorkingBand};
+
+use crate::error::{EstimateError, Result};
+use crate::index::{FeatureIndex, IndexParams, Pose};
+use crate::scnn::{EMBEDDING_DIM, SCNN_SIDE, Scnn};
+use crate::segment::{SegmentParams, Segmenter};
+
+/// Metadata keys a band database carries.
+pub mod keys {
+    /// SHA-256 of the SCNN that embedded the database.
+    pub const SCNN_SHA256: &str = "scnn_sha256";
+    /// The region the silhouettes were rendered in: `x0,y0,width,height`, px.
+    pub const ROI: &str = "roi";
+    /// The band's poses: `theta_min,theta_max,d_min,d_max` (deg, mm).
+    pub const BAND: &str = "band";
+    /// The grid's steps: `theta_step_deg,translation_step_mm`.
+    pub const GRID: &str = "grid";
+    /// The camera's intrinsics and lens, as debug text (for the reader).
+    pub const CAMERA: &str = "camera";
+    /// Median feature distance between silhouettes one degree of bend apart.
+    pub const DISTANCE_PER_DEG: &str = "distance_per_deg";
+}
+
+/// A borrowed RGB frame (8 bits per channel), rows `stride` bytes apart.
+#[derive(Debug, Clone, Copy)]
+pub struct RgbView<'a> {
+    data: &'a [u8],
+    width: u32,
+    height: u32,
+    stride: usize,
+}
+
+impl<'a> RgbView<'a> {
+    /// A view of `width × height` pixels whose rows start `stride` bytes
+    /// apart (`stride ≥ 3·width`; the last row need not be padded).
+    ///
+    /// # Errors
+    /// [`EstimateError::ImageSize`] when `data` is too short for the rows, or
+    /// the stride is shorter than a row.
+    pub fn new(data: &'a [u8], width: u32, height: u32, stride: usize) -> Result<Self> {
+        let row = 3 * width as usize;
+        let needed = if height == 0 {
+            0
+        } else {
+            stride * (height as usize - 1) + row
+        };
+        if stride < row || data.len() < needed || width == 0 || height == 0 {
+            return Err(EstimateError::ImageSize {
+                width,
+                height,
+                expected: needed.max(row * height as usize),
+                got: data.len(),
+            });
+        }
+        Ok(Self {
+            data,
+            width,
+            height,
+            stride,
+        })
+    }
+
+    /// A tightly packed frame (`stride = 3·width`).
+    ///
+    /// # Errors
+    /// As [`RgbView::new`].
+    pub fn packed(data: &'a [u8], width: u32, height: u32) -> Result<Self> {
+        Self::new(data, width, height, 3 * width as usize)
+    }
+
+    /// Copies `roi` into `out` as a packed RGB image.
+    fn crop_into(&self, roi: Roi, out: &mut Vec<u8>) -> Result<()> {
+        roi.check_within(self.width, self.height)?;
+        out.clear();
+        let row = 3 * roi.width as usize;
+        for y in roi.y0..roi.y0 + roi.height {
+            let start = y as usize * self.stride + 3 * roi.x0 as usize;
+            out.extend_from_slice(&self.data[start..start + row]);
+        }
+        Ok(())
+    }
+}
+
+/// What IBJAE read from one frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IbjaeReading {
+    /// Bend of the nearest database silhouette, deg.
+    pub theta_deg: f64,
+    /// Translation of the nearest database silhouette, mm.
+    pub translation_mm: f64,
+    /// Feature distance to it (L2, SCNN units).
+    pub distance: f64,
+    /// The distance in degrees of bend, at least half the grid's step: the
+    /// reading's uncertainty (see the module docs).
+    pub sigma_deg: f64,
+    /// Which database answered (its position in [`Ibjae::new`]'s list).
+    pub band: usize,
+}
+
+/// One working band's feature database.
+#[derive(Debug)]
+pub struct BandDatabase {
+    /// The band (poses and region).
+    pub band: WorkingBand,
+    /// The SCNN embeddings of its grid, labelled with their poses.
+    pub index: FeatureIndex,
+    distance_per_deg: f64,
+    theta_step_deg: f64,
+}
+
+impl BandDatabase {
+    /// Reads the band and calibration from an index's metadata (as
+    /// [`build_band_database`] writes them, or a loaded file has them).
+    ///
+    /// # Errors
+    /// [`EstimateError::ModelFile`] naming the metadata key that is missing or
+    /// unreadable.
+    pub fn from_index(index: FeatureIndex) -> Result<Self> {
+        let numbers = |key: &str, n: usize| -> Result<Vec<f64>> {
+            let bad = || EstimateError::ModelFile {
+                path: format!("feature database metadata {key:?}"),
+                message: format!("missing or not {n} comma-separated numbers"),
+            };
+            let text = index.metadata().get(key).ok_or_else(bad)?;
+            let v: Vec<f64> = text
+                .split(',')
+                .map(|s| s.trim().parse::<f64>())
+                .collect::<std::result::Result<_, _>>()
+                .map_err(|_| bad())?;
+            if v.len() == n && v.iter().all(|x| x.is_finite()) {
+                Ok(v)
+            } else {
+                Err(bad())
+            }
+        };
+        let roi = numbers(keys::ROI, 4)?;
+        let band = numbers(keys::BAND, 4)?;
+        let grid = numbers(keys::GRID, 2)?;
+        let per_deg = numbers(keys::DISTANCE_PER_DEG, 1)?[0];
+        Ok(Self {
+            band: WorkingBand {
+                poses: kflex_model::PoseRange {
+                    theta_deg: [band[0], band[1]],
+                    translation_mm: [band[2], band[3]],
+                },
+                roi: Roi {
+                    x0: roi[0] as u32,
+                    y0: roi[1] as u32,
+                    width: roi[2] as u32,
+                    height: roi[3] as u32,
+                },
+            },
+            index,
+            distance_per_deg: per_deg,
+            theta_step_deg: grid[0],
+        })
+    }
+}
+
+/// Renders, embeds and indexes the nominal instrument's silhouettes over one
+/// band: θ from the band's lower to its upper bend every `theta_step_deg`,
+/// d likewise every `translation_step_mm`, each a 48×48 silhouette of the
+/// band's region as `camera` (with its lens) sees it.
+///
+/// # Errors
+/// [`EstimateError::OutOfRange`] for steps outside `(0, 90]` deg and
+/// `(0, 100]` mm; errors of the renderer, the SCNN and the index.
+pub fn build_band_database(
+    scnn: &mut Scnn,
+    camera: &Camera,
+    instrument: &Instrument,
+    band: &WorkingBand,
+    theta_step_deg: f64,
+    translation_step_mm: f64,
+) -> Result<BandDatabase> {
+    kflex_model::Bounds::open_closed(0.0, 90.0).check("theta_step_deg", theta_step_deg)?;
+    kflex_model::Bounds::open_closed(0.0, 100.0)
+        .check("translation_step_mm", translation_step_mm)?;
+    let [t0, t1] = band.poses.theta_deg;
+    let [d0, d1] = band.poses.translation_mm;
+    let steps = |lo: f64, hi: f64, step: f64| ((hi - lo) / step + 1e-9).floor() as usize + 1;
+    let (nt, nd) = (
+        steps(t0, t1, theta_step_deg),
+        steps(d0, d1, translation_step_mm),
+    );
+    let small = camera.with_intrinsics(band.roi.intrinsics(
+        &camera.intrinsics,
+        SCNN_SIDE,
+        SCNN_SIDE,
+    )?);
+    let mut raster = Rasterizer::new();
+    let mut poses = Vec::with_capacity(nt * nd);
+    let mut masks = Vec::with_capacity(nt * nd);
+    for j in 0..nd {
+        let d = d0 + j as f64 * translation_step_mm;
+        for i in 0..nt {
+            let theta = t0 + i as f64 * theta_step_deg;
+            let mut mask = Mask::new(SCNN_SIDE, SCNN_SIDE)?;
+            raster.silhouette(&small, &instrument.shape(theta, d)?, &mut mask)?;
+            masks.push(mask);
+            poses.push(Pose {
+                theta_deg: theta,
+                translation_mm: d,
+            });
+        }
+    }
+    let mut features = Vec::with_capacity(masks.len() * EMBEDDING_DIM);
+    for chunk in masks.chunks(256) {
+        features.extend(scnn.embed_batch(chunk)?);
+    }
+    // how far apart neighbouring bends lie in feature space, per degree
+    let mut per_deg: Vec<f64> = Vec::with_capacity(nt * nd);
+    for j in 0..nd {
+        for i in 1..nt {
+            let (a, b) = (j * nt + i - 1, j * nt + i);
+            let fa = &features[a * EMBEDDING_DIM..(a + 1) * EMBEDDING_DIM];
+            let fb = &features[b * EMBEDDING_DIM..(b + 1) * EMBEDDING_DIM];
+            let dist: f64 = fa
+                .iter()
+                .zip(fb)
+                .map(|(x, y)| f64::from(x - y).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            per_deg.push(dist / theta_step_deg);
+        }
+    }
+    per_deg.sort_by(f64::total_cmp);
+    let median = per_deg
+        .get(per_deg.len() / 2)
+        .copied()
+        .unwrap_or(1.0)
+        .max(1e-12);
+    let mut index = FeatureIndex::build(&features, EMBEDDING_DIM, &poses, IndexParams::default())?;
+    let r = band.roi;
+    index.set_metadata(keys::SCNN_SHA256, scnn.sha256());
+    index.set_metadata(
+        keys::ROI,
+        format!("{},{},{},{}", r.x0, r.y0, r.width, r.height),
+    );
+    index.set_metadata(keys::BAND, format!("{t0},{t1},{d0},{d1}"));
+    index.set_metadata(
+        keys::GRID,
+        format!("{theta_step_deg},{translation_step_mm}"),
+    );
+    index.set_metadata(
+        keys::CAMERA,
+        format!("{:?} {:?}", camera.intrinsics, camera.lens),
+    );
+    index.set_metadata(keys::DISTANCE_PER_DEG, format!("{median}"));
+    BandDatabase::from_index(index)
+}
+
+/// IBJAE: segmentation, SCNN embedding and retrieval in one.
+#[derive(Debug)]
+pub struct Ibjae {
+    scnn: Scnn,
+    segmenter: Segmenter,
+    bands: Vec<BandDatabase>,
+    crop: Vec<u8>,
+    embedding: [f32; EMBEDDING_DIM],
+}
+
+impl Ibjae {
+    /// IBJAE over the given band databases, each of which must have been
+    /// embedded by this SCNN.
+    ///
+    /// # Errors
+    /// [`EstimateError::ModelMismatch`] naming both SHA-256s when a database
+    /// was built with another model; [`EstimateError::EmptyIndex`] for no
+    /// databases; as [`Segmenter::new`] for bad segmentation parameters.
+    pub fn new(scnn: Scnn, segment: SegmentParams, bands: Vec<BandDatabase>) -> Result<Self> {
+        if bands.is_empty() {
+            return Err(EstimateError::EmptyIndex);
+        }
+        for b in &bands {
+            let built = b
+                .index
+                .metadata()
+                .get(keys::SCNN_SHA256)
+                .map_or("(none)", String::as_str);
+            if built != scnn.sha256() {
+                return Err(EstimateError::ModelMismatch {
+                    path: "feature database".to_string(),
+                    which: "SCNN",
+                    expected: scnn.sha256().to_string(),
+                    found: built.to_string(),
+                });
+            }
+        }
+        let largest = bands
+            .iter()
+            .map(|b| 3 * b.band.roi.area() as usize)
+            .max()
+            .unwrap_or(0);
+        Ok(Self {
+            scnn,
+            segmenter: Segmenter::new(segment)?,
+            bands,
+            crop: Vec::with_capacity(largest),
+            embedding: [0.0; EMBEDDING_DIM],
+        })
+    }
+
+    /// The band databases.
+    #[must_use]
+    pub fn bands(&self) -> &[BandDatabase] {
+        &self.bands
+    }
+
+    /// The bands to ask for a frame at translation `translation_mm`: those
+    /// whose poses hold it and, given an estimate of the bend, the one that
+    /// holds that bend deepest inside; without one, every band at that
+    /// translation (IBJAE then keeps the nearest answer).
+    #[must_use]
+    pub fn bands_for(&self, theta_hint_deg: Option<f64>, translation_mm: f64) -> Vec<usize> {
+        let at_d: Vec<usize> = (0..self.bands.len())
+            .filter(|&i| {
+                let [d0, d1] = self.bands[i].band.poses.translation_mm;
+                (d0..=d1).contains(&translation_mm)
+            })
+            .collect();
+        let Some(theta) = theta_hint_deg.filter(|t| t.is_finite()) else {
+            return at_d;
+        };
+        let room = |i: &usize| {
+            let [lo, hi] = self.bands[*i].band.poses.theta_deg;
+            (theta - lo).min(hi - theta)
+        };
+        at_d.iter()
+            .copied()
+            .filter(|i| room(i) >= 0.0)
+            .max_by(|a, b| room(a).total_cmp(&room(b)))
+            .map_or(at_d, |best| vec![best])
+    }
+
+    /// Reads the joint from `frame` with the databases `bands` (see
+    /// [`Ibjae::bands_for`]); `Ok(None)` when the segmentation finds no
+    /// instrument in any of their regions: never a made-up angle.
+    ///
+    /// # Errors
+    /// [`EstimateError::ImageSize`] or a range error for a region outside
+    /// the frame; errors of the SCNN and the index.
+    pub fn read(&mut self, frame: &RgbView, bands: &[usize]) -> Result<Option<IbjaeReading>> {
+        let mut best: Option<IbjaeReading> = None;
+        for &i in bands {
+            let Some(db) = self.bands.get(i) else {
+                continue;
+            };
+            let roi = db.band.roi;
+            frame.crop_into(roi, &mut self.crop)?;
+            let segmented = match self.segmenter.segment(
+                &self.crop,
+                roi.width,
+                roi.height,
+                Roi::whole(roi.width, roi.height),
+            ) {
+                Ok(s) => s,
+                Err(EstimateError::NoInstrument { .. }) => continue,
+                Err(e) => return Err(e),
+            };
+            self.scnn.embed(&segmented.small, &mut self.embedding)?;
+            let db = &self.bands[i];
+            let n = db.index.nearest(&self.embedding)?;
+            let distance = f64::from(n.distance());
+            let reading = IbjaeReading {
+                theta_deg: n.pose.theta_deg,
+                translation_mm: n.pose.translation_mm,
+                distance,
+                sigma_deg: (distance / db.distance_per_deg).max(0.5 * db.theta_step_deg),
+                band: i,
+            };
+            if best.is_none_or(|b| reading.distance < b.distance) {
+                best = Some(reading);
+            }
+        }
+        Ok(best)
+    }
+}

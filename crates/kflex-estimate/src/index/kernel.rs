@@ -1,0 +1,323 @@
+//! The arithmetic every query shares: the full squared distance, one
+//! projected coordinate, and the rounding-error constants of the exactness
+//! bound (see the module docs of [`super`]).
+//!
+//! The full distance is computed in one fixed order whatever the CPU: 32
+//! running sums, lane `l` taking the components `l, l + 32, l + 64, …`, then
+//! the tail, then the lanes added pairwise in a fixed tree. The AVX2 and
+//! AVX-512 builds of it (intrinsics, chosen at run time) only process 8 or 16
+//! lanes per instruction, with the same separate multiply and add (no FMA),
+//! so every build returns the same bits, and the index and the linear scan compare the very
+//! same numbers (ties included).
+
+/// Lanes of the distance kernel: two AVX-512 registers, four AVX2 ones, so
+/// that independent sums hide the adder's latency.
+const LANES: usize = 32;
+
+/// Unit round-off of f32 (half an ulp of 1): `2^-24`.
+pub(crate) const UNIT_ROUNDOFF: f64 = 1.0 / 16_777_216.0;
+
+/// The classic bound `γ_n = n·u / (1 − n·u)` on the relative error of `n`
+/// rounded f32 operations in a row (a sum of `n` non-negative terms, a dot
+/// product of length `n`), for any order of summation.
+pub(crate) fn gamma(n: usize) -> f64 {
+    let nu = n as f64 * UNIT_ROUNDOFF;
+    nu / (1.0 - nu).max(f64::MIN_POSITIVE)
+}
+
+/// Adds the squared differences of one chunk into the lanes.
+#[inline(always)]
+fn accumulate(acc: &mut [f32; LANES], x: &[f32; LANES], y: &[f32; LANES]) {
+    for l in 0..LANES {
+        let d = x[l] - y[l];
+        acc[l] += d * d;
+    }
+}
+
+/// The last, partial chunk of `a` and `b` padded with zeros (adding `+0.0`
+/// to a non-negative lane sum changes no bit), if there is one.
+#[inline(always)]
+fn padded_tail(a: &[f32], b: &[f32]) -> Option<([f32; LANES], [f32; LANES])> {
+    let start = a.len() - a.len() % LANES;
+    if start == a.len() {
+        return None;
+    }
+    let (mut x, mut y) = ([0.0_f32; LANES], [0.0_f32; LANES]);
+    x[..a.len() - start].copy_from_slice(&a[start..]);
+    y[..b.len() - start].copy_from_slice(&b[start..]);
+    Some((x, y))
+}
+
+/// The fixed pairwise reduction of the lanes.
+#[inline(always)]
+fn reduce(mut acc: [f32; LANES]) -> f32 {
+    for width in [16, 8, 4, 2, 1] {
+        for l in 0..width {
+            acc[l] += acc[l + width];
+        }
+    }
+    acc[0]
+}
+
+/// Squared L2 distance between `a` and `b` (equal lengths), in the fixed
+/// order described in the module docs; plain Rust.
+fn squared_distance_portable(a: &[f32], b: &[f32]) -> f32 {
+    let mut acc = [0.0_f32; LANES];
+    let (ca, _) = a.as_chunks::<LANES>();
+    let (cb, _) = b.as_chunks::<LANES>();
+    for (x, y) in ca.iter().zip(cb) {
+        accumulate(&mut acc, x, y);
+    }
+    if let Some((x, y)) = padded_tail(a, b) {
+        accumulate(&mut acc, &x, &y);
+    }
+    reduce(acc)
+}
+
+/// Defines `$name`, [`squared_distance_portable`] with `$width` lanes per
+/// SIMD instruction of `$feature` (`LANES / $width` registers; separate
+/// multiply and add, no FMA: the same roundings, so the same bits).
+#[cfg(target_arch = "x86_64")]
+macro_rules! simd_squared_distance {
+    ($name:ident, $feature:literal, $width:literal, $vec:ident,
+     $load:ident, $store:ident, $zero:ident, $sub:ident, $mul:ident, $add:ident) => {
+        #[target_feature(enable = $feature)]
+        fn $name(a: &[f32], b: &[f32]) -> f32 {
+            use std::arch::x86_64::{$add, $load, $mul, $store, $sub, $vec, $zero};
+            const REGS: usize = LANES / $width;
+            #[target_feature(enable = $feature)]
+            #[inline]
+            fn step(acc: &mut [$vec; REGS], x: &[f32; LANES], y: &[f32; LANES]) {
+                for (v, acc) in acc.iter_mut().enumerate() {
+                    // SAFETY: x and y hold LANES = REGS × $width floats;
+                    // unaligned loads.
+                    let (p, q) = unsafe {
+                        (
+                            $load(x.as_ptr().add($width * v)),
+                            $load(y.as_ptr().add($width * v)),
+                        )
+                    };
+                    let d = $sub(p, q);
+                    *acc = $add(*acc, $mul(d, d));
+                }
+            }
+            let mut acc = [$zero(); REGS];
+            let (ca, _) = a.as_chunks::<LANES>();
+            let (cb, _) = b.as_chunks::<LANES>();
+            for (x, y) in ca.iter().zip(cb) {
+                step(&mut acc, x, y);
+            }
+            if let Some((x, y)) = padded_tail(a, b) {
+                step(&mut acc, &x, &y);
+            }
+            let mut lanes = [0.0_f32; LANES];
+            for (v, acc) in acc.iter().enumerate() {
+                // SAFETY: lanes holds REGS × $width floats; unaligned store.
+                unsafe { $store(lanes.as_mut_ptr().add($width * v), *acc) };
+            }
+            reduce(lanes)
+        }
+    };
+}
+
+#[cfg(target_arch = "x86_64")]
+simd_squared_distance!(
+    squared_distance_avx2,
+    "avx2",
+    8,
+    __m256,
+    _mm256_loadu_ps,
+    _mm256_storeu_ps,
+    _mm256_setzero_ps,
+    _mm256_sub_ps,
+    _mm256_mul_ps,
+    _mm256_add_ps
+);
+
+#[cfg(target_arch = "x86_64")]
+simd_squared_distance!(
+    squared_distance_avx512,
+    "avx512f",
+    16,
+    __m512,
+    _mm512_loadu_ps,
+    _mm512_storeu_ps,
+    _mm512_setzero_ps,
+    _mm512_sub_ps,
+    _mm512_mul_ps,
+    _mm512_add_ps
+);
+
+/// Which build of the distance kernel this CPU runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Kernel {
+    /// Whatever the compile target allows (SSE2 on x86-64).
+    Portable,
+    /// AVX2, detected at run time.
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+    /// AVX-512F, detected at run time.
+    #[cfg(target_arch = "x86_64")]
+    Avx512,
+}
+
+impl Kernel {
+    /// The widest build this CPU supports.
+    pub(crate) fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                return Self::Avx512;
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                return Self::Avx2;
+            }
+        }
+        Self::Portable
+    }
+
+    /// Squared L2 distance between `a` and `b` (equal lengths); the same bits
+    /// whichever build runs.
+    #[inline]
+    pub(crate) fn squared_distance(self, a: &[f32], b: &[f32]) -> f32 {
+        debug_assert_eq!(a.len(), b.len());
+        match self {
+            Self::Portable => squared_distance_portable(a, b),
+            // SAFETY: `detect` chose this variant only after the CPU reported
+            // the target feature the function is compiled for.
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx2 => unsafe { squared_distance_avx2(a, b) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx512 => unsafe { squared_distance_avx512(a, b) },
+        }
+    }
+
+    /// The nearest of the rows of `features` (row-major, `query.len()` wide)
+    /// to `query` by a linear scan: `(row, squared distance)`, the lowest row
+    /// among equals. `features` must hold at least one row.
+    pub(crate) fn nearest_linear(self, features: &[f32], query: &[f32]) -> (usize, f32) {
+        match self {
+            Self::Portable => nearest_linear_portable(features, query),
+            // SAFETY: as in `squared_distance`.
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx2 => unsafe { nearest_linear_avx2(features, query) },
+            // SAFETY: as in `squared_distance`.
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx512 => unsafe { nearest_linear_avx512(features, query) },
+        }
+    }
+}
+
+/// The linear scan, with the distance kernel `dist` inlined into the loop.
+#[inline(always)]
+fn nearest_linear_with(
+    features: &[f32],
+    query: &[f32],
+    dist: impl Fn(&[f32], &[f32]) -> f32,
+) -> (usize, f32) {
+    let mut best = (0, f32::INFINITY);
+    for (i, row) in features.chunks_exact(query.len()).enumerate() {
+        let d = dist(row, query);
+        if d < best.1 {
+            best = (i, d);
+        }
+    }
+    best
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn nearest_linear_avx512(features: &[f32], query: &[f32]) -> (usize, f32) {
+    nearest_linear_with(features, query, |a, b| squared_distance_avx512(a, b))
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn nearest_linear_avx2(features: &[f32], query: &[f32]) -> (usize, f32) {
+    nearest_linear_with(features, query, |a, b| squared_distance_avx2(a, b))
+}
+
+fn nearest_linear_portable(features: &[f32], query: &[f32]) -> (usize, f32) {
+    nearest_linear_with(features, query, squared_distance_portable)
+}
+
+/// Projects `x − mean` on the rows of `rows` (each `x.len()` wide) into
+/// `out` (one value per row): the coordinates the k-d tree holds.
+pub(crate) fn project(rows: &[f32], mean: &[f32], x: &[f32], out: &mut [f32]) {
+    for (o, row) in out.iter_mut().zip(rows.chunks_exact(x.len())) {
+        let mut acc = [0.0_f32; 16];
+        let (cr, tr) = row.as_chunks::<16>();
+        let (cm, tm) = mean.as_chunks::<16>();
+        let (cx, tx) = x.as_chunks::<16>();
+        for ((r, m), v) in cr.iter().zip(cm).zip(cx) {
+            for l in 0..16 {
+                acc[l] += r[l] * (v[l] - m[l]);
+            }
+        }
+        for (l, ((r, m), v)) in tr.iter().zip(tm).zip(tx).enumerate() {
+            acc[l] += r * (v - m);
+        }
+        *o = acc.iter().sum();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_build_returns_the_same_bits() {
+        let a: Vec<f32> = (0..261).map(|i| (i as f32 * 0.37).sin() * 3.1).collect();
+        let b: Vec<f32> = (0..261).map(|i| (i as f32 * 0.11).cos() * 2.7).collect();
+        let mut kernels = vec![Kernel::Portable];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                kernels.push(Kernel::Avx2);
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                kernels.push(Kernel::Avx512);
+            }
+        }
+        for n in [1, 15, 16, 17, 31, 32, 33, 64, 255, 256, 261] {
+            let want = squared_distance_portable(&a[..n], &b[..n]);
+            for k in &kernels {
+                let got = k.squared_distance(&a[..n], &b[..n]);
+                assert_eq!(got.to_bits(), want.to_bits(), "{k:?}, n = {n}");
+                let rows: Vec<f32> = b[..n].iter().chain(&a[..n]).copied().collect();
+                assert_eq!(k.nearest_linear(&rows, &a[..n]), (1, 0.0));
+            }
+            let exact: f64 = a[..n]
+                .iter()
+                .zip(&b[..n])
+                .map(|(x, y)| (f64::from(*x) - f64::from(*y)).powi(2))
+                .sum();
+            assert!((f64::from(want) - exact).abs() <= gamma(n + 2) * exact);
+        }
+    }
+
+    #[test]
+    fn linear_scan_keeps_the_lowest_row_of_equals() {
+        let features = [1.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0];
+        assert_eq!(
+            Kernel::detect().nearest_linear(&features, &[0.0, 0.0]),
+            (1, 0.0)
+        );
+        assert_eq!(
+            Kernel::detect().nearest_linear(&features, &[1.0, 1.0]),
+            (0, 0.0)
+        );
+    }
+
+    #[test]
+    fn projection_of_the_mean_is_zero() {
+        let rows = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+        let mean = [0.5, -2.0, 3.0];
+        let mut out = [9.0; 2];
+        project(&rows, &mean, &mean, &mut out);
+        assert_eq!(out, [0.0, 0.0]);
+        project(&rows, &mean, &[1.5, -1.0, 0.0], &mut out);
+        assert_eq!(out, [1.0, 1.0]);
+    }
+}

@@ -1,0 +1,113 @@
+//! LBHJAE: KBJAE and IBJAE fused by a Kalman filter, as one estimator a
+//! controller steps once per tick (cargo features `onnx` and `index`).
+
+use kflex_model::Command;
+
+use crate::error::Result;
+use crate::fusion::{Estimate, Fusion, Measurements};
+use crate::ibjae::{Ibjae, IbjaeReading, RgbView};
+use crate::kbjae::Kbjae;
+
+/// One tick of LBHJAE: the fused estimate and what each estimator read.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LbhjaeEstimate {
+    /// The fused estimate (θ̂, θ̂', covariance, what became of each reading).
+    pub fused: Estimate,
+    /// KBJAE's angle this tick, deg.
+    pub kbjae_deg: f64,
+    /// IBJAE's reading, `None` without a frame or with no instrument in it.
+    pub ibjae: Option<IbjaeReading>,
+}
+
+/// The hybrid estimator: `step(command, dt, frame)` per control tick.
+///
+/// KBJAE runs every tick on the command sent to the plant. IBJAE runs when a
+/// frame arrives (cameras are slower than control loops, and frames are
+/// dropped): its database is chosen by the commanded translation and the
+/// last fused bend ([`Ibjae::bands_for`]). Its per-frame uncertainty goes
+/// to the filter with its angle (the paper's filter ignores it, the adaptive
+/// one uses it).
+pub struct Lbhjae {
+    kbjae: Kbjae,
+    ibjae: Ibjae,
+    fusion: Box<dyn Fusion + Send>,
+    started: bool,
+}
+
+impl std::fmt::Debug for Lbhjae {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Lbhjae")
+            .field("kbjae", &self.kbjae)
+            .field("ibjae", &self.ibjae)
+            .field("estimate", &self.fusion.estimate())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Lbhjae {
+    /// Puts the three together.
+    #[must_use]
+    pub fn new(kbjae: Kbjae, ibjae: Ibjae, fusion: Box<dyn Fusion + Send>) -> Self {
+        Self {
+            kbjae,
+            ibjae,
+            fusion,
+            started: false,
+        }
+    }
+
+    /// One tick: the command sent to the plant this tick, `dt_s` after the
+    /// last, and the camera's frame if one arrived.
+    ///
+    /// # Errors
+    /// A non-finite command or a bad `dt_s`; a frame whose regions do not
+    /// fit it; faults of the models. The estimator is then unchanged. A frame
+    /// with no instrument in it is no error: IBJAE's reading is missing.
+    pub fn step(
+        &mut self,
+        command: Command,
+        dt_s: f64,
+        frame: Option<&RgbView>,
+    ) -> Result<LbhjaeEstimate> {
+        // every check before anything moves
+        crate::fusion::check_inputs(dt_s, &Measurements::default())?;
+        for (name, value) in [
+            ("theta_c_deg", command.theta_c_deg),
+            ("translation_mm", command.translation_mm),
+        ] {
+            if !value.is_finite() {
+                return Err(kflex_model::ModelError::NonFinite { name, value }.into());
+            }
+        }
+        let ibjae = match frame {
+            Some(frame) => {
+                let hint = self.started.then(|| self.fusion.estimate().theta_hat_deg);
+                let bands = self.ibjae.bands_for(hint, command.translation_mm);
+                self.ibjae.read(frame, &bands)?
+            }
+            None => None,
+        };
+        let kbjae_deg = self.kbjae.step(command.theta_c_deg, dt_s)?;
+        let fused = self.fusion.step(
+            dt_s,
+            Measurements {
+                kbjae_deg: Some(kbjae_deg),
+                ibjae_deg: ibjae.map(|r| r.theta_deg),
+                ibjae_sigma_deg: ibjae.map(|r| r.sigma_deg),
+            },
+        )?;
+        self.started = true;
+        Ok(LbhjaeEstimate {
+            fused,
+            kbjae_deg,
+            ibjae,
+        })
+    }
+
+    /// Back to the start: no command history, the filter at its initial state.
+    pub fn reset(&mut self) {
+        self.kbjae.reset();
+        self.fusion.reset();
+        self.started = false;
+    }
+}

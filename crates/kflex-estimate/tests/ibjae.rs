@@ -1,0 +1,187 @@
+//! IBJAE and LBHJAE end to end on the small test models
+//! (`tools/make_test_models.py`): a band database built from the nominal
+//! instrument, frames rendered and segmented, the SCNN and the index.
+#![cfg(all(feature = "onnx", feature = "index"))]
+
+use std::path::{Path, PathBuf};
+
+use kflex_estimate::{
+    AdaptiveKalman, AdaptiveParams, EstimateError, Fusion, Ibjae, Kbjae, Lbhjae, RgbView, Scnn,
+    SegmentParams, build_band_database,
+};
+use kflex_model::{
+    Camera, Command, FrameParams, Instrument, PoseRange, Roi, SceneRenderer, WorkingBand,
+};
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name)
+}
+
+/// The paper's band: θ 0–50° at d = 10 mm in the paper's region.
+fn paper_band(camera: &Camera) -> WorkingBand {
+    WorkingBand {
+        poses: PoseRange {
+            theta_deg: [0.0, 50.0],
+            translation_mm: [10.0, 10.0],
+        },
+        roi: Roi::paper(camera).unwrap(),
+    }
+}
+
+fn ibjae(camera: &Camera) -> Ibjae {
+    let mut scnn = Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
+    let db = build_band_database(
+        &mut scnn,
+        camera,
+        &Instrument::kflex(),
+        &paper_band(camera),
+        1.0,
+        1.0,
+    )
+    .unwrap();
+    assert_eq!(db.index.len(), 51);
+    Ibjae::new(scnn, SegmentParams::default(), vec![db]).unwrap()
+}
+
+#[test]
+fn ibjae_reads_rendered_frames_near_their_pose() {
+    let camera = Camera::default();
+    let mut ibjae = ibjae(&camera);
+    let mut renderer = SceneRenderer::new();
+    let mut worst: f64 = 0.0;
+    for theta in [5.0, 17.0, 30.0, 44.0] {
+        let shape = Instrument::kflex().shape(theta, 10.0).unwrap();
+        let f = renderer
+            .render(&camera, &shape, &FrameParams::default())
+            .unwrap();
+        let view = RgbView::packed(&f.rgb, f.width, f.height).unwrap();
+        let r = ibjae.read(&view, &[0]).unwrap().expect("an instrument");
+        assert_eq!(r.translation_mm, 10.0);
+        assert!(r.sigma_deg >= 0.5 && r.distance.is_finite(), "{r:?}");
+        worst = worst.max((r.theta_deg - theta).abs());
+    }
+    // a random-weight test SCNN: the angle is near, not exact
+    assert!(worst <= 6.0, "worst error {worst} deg");
+}
+
+#[test]
+fn a_padded_frame_reads_as_the_packed_one_and_bad_views_are_refused() {
+    let camera = Camera::default();
+    let mut ibjae = ibjae(&camera);
+    let shape = Instrument::kflex().shape(25.0, 10.0).unwrap();
+    let f = SceneRenderer::new()
+        .render(&camera, &shape, &FrameParams::default())
+        .unwrap();
+    let packed = ibjae
+        .read(&RgbView::packed(&f.rgb, f.width, f.height).unwrap(), &[0])
+        .unwrap();
+    let stride = 3 * f.width as usize + 16;
+    let mut padded = vec![0u8; stride * f.height as usize];
+    for y in 0..f.height as usize {
+        let row = 3 * f.width as usize;
+        padded[y * stride..y * stride + row].copy_from_slice(&f.rgb[y * row..(y + 1) * row]);
+    }
+    let view = RgbView::new(&padded, f.width, f.height, stride).unwrap();
+    assert_eq!(ibjae.read(&view, &[0]).unwrap(), packed);
+    assert!(matches!(
+        RgbView::new(&f.rgb[..100], f.width, f.height, 3 * f.width as usize),
+        Err(EstimateError::ImageSize { .. })
+    ));
+    assert!(matches!(
+        RgbView::new(&f.rgb, f.width, f.height, 2),
+        Err(EstimateError::ImageSize { .. })
+    ));
+    // a frame too small for the band's region
+    let tiny = vec![0u8; 3 * 64 * 64];
+    assert!(
+        ibjae
+            .read(&RgbView::packed(&tiny, 64, 64).unwrap(), &[0])
+            .is_err()
+    );
+}
+
+#[test]
+fn no_instrument_is_no_reading_never_a_made_up_angle() {
+    let camera = Camera::default();
+    let mut ibjae = ibjae(&camera);
+    let k = camera.intrinsics;
+    // flat tissue colour: nothing to segment
+    let rgb: Vec<u8> = (0..k.width * k.height)
+        .flat_map(|_| [180u8, 90, 80])
+        .collect();
+    let view = RgbView::packed(&rgb, k.width, k.height).unwrap();
+    assert_eq!(ibjae.read(&view, &[0]).unwrap(), None);
+}
+
+#[test]
+fn a_database_from_another_scnn_is_refused() {
+    let camera = Camera::default();
+    let mut scnn = Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
+    let mut db = build_band_database(
+        &mut scnn,
+        &camera,
+        &Instrument::kflex(),
+        &paper_band(&camera),
+        5.0,
+        1.0,
+    )
+    .unwrap();
+    db.index.set_metadata("scnn_sha256", "0000");
+    let e = Ibjae::new(scnn, SegmentParams::default(), vec![db]).unwrap_err();
+    assert!(matches!(e, EstimateError::ModelMismatch { .. }), "{e}");
+    assert!(e.to_string().contains("0000"), "{e}");
+}
+
+#[test]
+fn lbhjae_fuses_both_and_runs_without_frames() {
+    let camera = Camera::default();
+    let kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    let fusion: Box<dyn Fusion + Send> =
+        Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap());
+    let mut lbhjae = Lbhjae::new(kbjae, ibjae(&camera), fusion);
+    let mut renderer = SceneRenderer::new();
+    let mut with_frames = 0;
+    for k in 0..30 {
+        let theta = 20.0 + 0.2 * f64::from(k);
+        let command = Command {
+            theta_c_deg: theta,
+            translation_mm: 10.0,
+        };
+        let frame = (k % 3 == 0).then(|| {
+            let shape = Instrument::kflex().shape(theta, 10.0).unwrap();
+            renderer
+                .render(&camera, &shape, &FrameParams::default())
+                .unwrap()
+        });
+        let view = frame
+            .as_ref()
+            .map(|f| RgbView::packed(&f.rgb, f.width, f.height).unwrap());
+        let e = lbhjae.step(command, 0.01, view.as_ref()).unwrap();
+        assert!(e.fused.theta_hat_deg.is_finite());
+        with_frames += usize::from(e.ibjae.is_some());
+    }
+    assert_eq!(with_frames, 10);
+    // a bad tick changes nothing
+    let before = format!("{lbhjae:?}");
+    let bad = Command {
+        theta_c_deg: f64::NAN,
+        translation_mm: 10.0,
+    };
+    let e = lbhjae.step(bad, 0.01, None).unwrap_err();
+    assert!(e.to_string().contains("theta_c_deg"), "{e}");
+    assert!(
+        lbhjae
+            .step(
+                Command {
+                    theta_c_deg: 20.0,
+                    translation_mm: 10.0
+                },
+                -1.0,
+                None
+            )
+            .is_err()
+    );
+    assert_eq!(format!("{lbhjae:?}"), before);
+}
