@@ -24,12 +24,14 @@ Augmentation: each x^b of a step gets Gaussian noise with probability 0.5;
 the paper's ``N(0, 0.01)`` is read as a variance, so sigma = 0.1
 (``--noise-std``). Adam, learning rate 1e-4 decaying by 0.96 per epoch.
 
-Schedule (default): D^I of 100,000 pairs (the paper's size), 20 % of the
-frames held out for the evaluation, 4 epochs over the other 80,000 pairs
-(1,600 steps of 200 pairs); measured on the 2-core development machine a
-step takes 0.84 s, so about 22 minutes, and ``--max-train-s`` (1,500 s)
-stops earlier on a slower machine, so that with the data (about 90 s) and
-the evaluation a run stays within 30 minutes.
+Schedule (default): D^I of 100,000 pairs (the paper's size; 61 s to make
+on 2 threads), 20 % of the frames held out for the evaluation, 3 epochs over
+the other 80,000 pairs (1,200 steps of 200 pairs). On the quiet 2-core
+development machine a step takes 1.05 s (2026-11-24, torch 2.15.0 on the
+CPU, 2 threads), so about 21 minutes; ``--max-train-s`` (1,500 s) stops
+earlier on a slower or busier machine (steps took 2.4-2.7 s while other
+builds ran), so that with the data and the evaluation a run stays within
+30 minutes.
 
 ``--smoke`` trains on tiny data for a few steps (under a minute); the
 default writes to ``assets/models/``. ``--data FILE.npz`` reads D^I saved
@@ -162,7 +164,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--pairs", type=int, default=100_000, help="pairs of the generated D^I")
     p.add_argument("--seed", type=int, default=0, help="seed of the initialisation, split, batches, noise")
     p.add_argument("--test-share", type=float, default=0.2, help="share of the frames held out")
-    p.add_argument("--epochs", type=int, help="default 4 (smoke: 1)")
+    p.add_argument("--epochs", type=int, help="default 3 (smoke: 1)")
     p.add_argument("--max-steps", type=int, help="stop after this many steps (smoke: 3)")
     p.add_argument("--max-train-s", type=float, default=1500.0, help="stop training after this long")
     p.add_argument("--batch", type=int, default=200, help="pairs per step")
@@ -174,7 +176,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--device", default="auto", help="auto (GPU where available), cpu, cuda")
     args = p.parse_args(argv)
     if args.epochs is None:
-        args.epochs = 1 if args.smoke else 4
+        args.epochs = 1 if args.smoke else 3
     if args.max_steps is None and args.smoke:
         args.max_steps = 3
     return args

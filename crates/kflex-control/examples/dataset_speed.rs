@@ -60,7 +60,8 @@ fn stages(n: usize) -> Result<(), Box<dyn std::error::Error>> {
     let instrument = Instrument::kflex();
     let regions = WorkingRegions::full(&camera)?;
     let tol = BuildTolerances::default();
-    let mut renderer = SceneRenderer::new();
+    // one renderer per background, as the generator keeps them
+    let mut renderers: std::collections::HashMap<(usize, u64), SceneRenderer> = Default::default();
     let mut segmenter = Segmenter::new(SegmentParams::default())?;
     let mut raster = Rasterizer::new();
     let mut mask = Mask::new(48, 48)?;
@@ -78,10 +79,12 @@ fn stages(n: usize) -> Result<(), Box<dyn std::error::Error>> {
         let cam = tol.camera(&camera, i as u64)?;
         let shape = built.shape(theta, d)?;
         times[0] += t.elapsed().as_secs_f64();
+        let (kind, bg_seed) = ((i / 32) % 3, (i / 96) as u64 % 8);
+        let renderer = renderers.entry((kind, bg_seed)).or_default();
         let params = FrameParams {
-            background: Background::ALL[(i / 32) % 3],
+            background: Background::ALL[kind],
             tissue: Tissue::Organ,
-            seed: (i / 96) as u64 % 8,
+            seed: bg_seed,
             frame: i as u64,
             blur_px: if i % 3 == 0 { 1.0 } else { 0.0 },
             ..FrameParams::default()
@@ -115,7 +118,7 @@ fn stages(n: usize) -> Result<(), Box<dyn std::error::Error>> {
     }
     let per = |s: f64| 1e3 * s / n as f64;
     println!(
-        "one query's stages, one thread, {n} queries (mean region {:.0} px):",
+        "one query's stages, one thread, {n} queries (mean region {:.0} px; each background synthesised once):",
         area as f64 / n as f64
     );
     println!(
