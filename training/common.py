@@ -9,12 +9,11 @@ file points at ``crates/kflex-py/python``).
 
 from __future__ import annotations
 
-import hashlib
+import argparse
 import json
 import os
 import platform
 import random
-import tempfile
 from collections.abc import Mapping
 from importlib import metadata
 from pathlib import Path
@@ -22,9 +21,34 @@ from typing import Any
 
 import numpy as np
 import torch
+from kflex.npz import sha256, write_atomically
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_OUT = REPO_ROOT / "assets" / "models"
+
+
+def parser(doc: str | None, model: str) -> argparse.ArgumentParser:
+    """The options both scripts take; each adds its own."""
+    p = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--smoke", action="store_true", help="tiny data, a few steps (under a minute)")
+    p.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"folder of {model}.onnx and its card")
+    p.add_argument("--data", type=Path, help="the data set as .npz (kflex.npz.save); generated if left out")
+    p.add_argument("--data-seed", type=int, default=2020, help="seed of the generated data set")
+    p.add_argument("--seed", type=int, default=0, help="seed of the initialisation, batches and noise")
+    p.add_argument("--max-steps", type=int, help="stop after this many steps")
+    p.add_argument("--batch", type=int, default=200)
+    p.add_argument("--device", default="auto", help="auto (the GPU where torch finds one), cpu, cuda")
+    return p
+
+
+def finish(args: argparse.Namespace, epochs: int, smoke_steps: int) -> argparse.Namespace:
+    """Fills the defaults that depend on ``--smoke``: ``epochs`` (1 in a
+    smoke run) and ``max_steps`` (``smoke_steps`` in a smoke run)."""
+    if args.epochs is None:
+        args.epochs = 1 if args.smoke else epochs
+    if args.max_steps is None and args.smoke:
+        args.max_steps = smoke_steps
+    return args
 
 
 def pick_device(name: str) -> torch.device:
@@ -57,31 +81,6 @@ def versions() -> dict[str, str]:
     except ImportError:
         out["kflex"] = "not installed"
     return out
-
-
-def sha256(path: Path) -> str:
-    """The file's SHA-256, hex."""
-    digest = hashlib.sha256()
-    with path.open("rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
-
-
-def write_atomically(target: Path, data: bytes) -> None:
-    """Writes ``data`` to ``target`` through a temporary file in its folder and a rename."""
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)  # mkstemp's 0600 is for the temporary file only
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def card_path(onnx_path: Path) -> Path:
@@ -150,7 +149,8 @@ def write_card(onnx_path: Path, card: Mapping[str, Any]) -> Path:
     full = dict(card)
     full.update(file=onnx_path.name, bytes=onnx_path.stat().st_size, sha256=sha256(onnx_path))
     path = card_path(onnx_path)
-    write_atomically(path, (json.dumps(full, indent=2, sort_keys=True) + "\n").encode())
+    text = json.dumps(full, indent=2, sort_keys=True) + "\n"
+    write_atomically(path, lambda f: f.write(text.encode()))
     return path
 
 

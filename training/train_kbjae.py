@@ -33,7 +33,6 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import common
@@ -146,27 +145,14 @@ def evaluate(model: nn.Module, arrays: dict[str, np.ndarray], device: torch.devi
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--smoke", action="store_true", help="tiny data, a few steps (under a minute)")
-    p.add_argument("--out", type=Path, default=common.DEFAULT_OUT, help="folder of kbjae.onnx and its card")
-    p.add_argument("--data", type=Path, help="D^k as .npz (kflex.npz.save); generated if left out")
-    p.add_argument("--data-seed", type=int, default=2020, help="seed of the generated D^k")
-    p.add_argument("--seed", type=int, default=0, help="seed of the initialisation and the batches")
+    p = common.parser(__doc__, "kbjae")
     p.add_argument("--epochs", type=int, help="default 100 (smoke: 1)")
-    p.add_argument("--max-steps", type=int, help="stop after this many steps (smoke: 20)")
-    p.add_argument("--batch", type=int, default=200)
     p.add_argument("--lr", type=float, default=3e-5)
     p.add_argument("--lr-decay", type=float, default=0.95, help="per epoch")
     p.add_argument("--hidden-layers", type=int, default=3)
     p.add_argument("--dropout-drop", type=float, default=0.3, help="drop probability (Table II's 0.7 kept)")
     p.add_argument("--slope", type=float, default=0.2, help="LeakyReLU negative slope")
-    p.add_argument("--device", default="auto", help="auto (GPU where available), cpu, cuda")
-    args = p.parse_args(argv)
-    if args.epochs is None:
-        args.epochs = 1 if args.smoke else 100
-    if args.max_steps is None and args.smoke:
-        args.max_steps = 20
-    return args
+    return common.finish(p.parse_args(argv), epochs=100, smoke_steps=20)
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:

@@ -43,7 +43,6 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import common
@@ -156,30 +155,17 @@ def step_loss(
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--smoke", action="store_true", help="tiny data, a few steps (under a minute)")
-    p.add_argument("--out", type=Path, default=common.DEFAULT_OUT, help="folder of scnn.onnx and its card")
-    p.add_argument("--data", type=Path, help="D^I as .npz (kflex.npz.save); generated if left out")
-    p.add_argument("--data-seed", type=int, default=2020, help="seed of the generated D^I")
+    p = common.parser(__doc__, "scnn")
     p.add_argument("--pairs", type=int, default=100_000, help="pairs of the generated D^I")
-    p.add_argument("--seed", type=int, default=0, help="seed of the initialisation, split, batches, noise")
     p.add_argument("--test-share", type=float, default=0.2, help="share of the frames held out")
     p.add_argument("--epochs", type=int, help="default 3 (smoke: 1)")
-    p.add_argument("--max-steps", type=int, help="stop after this many steps (smoke: 3)")
     p.add_argument("--max-train-s", type=float, default=1500.0, help="stop training after this long")
-    p.add_argument("--batch", type=int, default=200, help="pairs per step")
     p.add_argument("--lr", type=float, default=1e-4)
     p.add_argument("--lr-decay", type=float, default=0.96, help="per epoch")
     p.add_argument("--margin", type=float, default=2.0, help="contrastive margin, embedding units")
     p.add_argument("--weight-decay", type=float, default=1e-5, help="L2 regularisation of the weights")
     p.add_argument("--noise-std", type=float, default=0.1, help="augmentation noise on x^b")
-    p.add_argument("--device", default="auto", help="auto (GPU where available), cpu, cuda")
-    args = p.parse_args(argv)
-    if args.epochs is None:
-        args.epochs = 1 if args.smoke else 3
-    if args.max_steps is None and args.smoke:
-        args.max_steps = 3
-    return args
+    return common.finish(p.parse_args(argv), epochs=3, smoke_steps=3)
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:

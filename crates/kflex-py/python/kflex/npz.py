@@ -25,7 +25,7 @@ from typing import IO, Any
 
 import numpy as np
 
-__all__ = ["card_path", "load", "save"]
+__all__ = ["card_path", "load", "save", "sha256", "write_atomically"]
 
 
 def card_path(path: str | os.PathLike[str]) -> Path:
@@ -34,7 +34,9 @@ def card_path(path: str | os.PathLike[str]) -> Path:
     return p.with_name(p.stem + ".card.json")
 
 
-def _write_atomically(target: Path, write: Callable[[IO[bytes]], None]) -> None:
+def write_atomically(target: Path, write: Callable[[IO[bytes]], None]) -> None:
+    """Calls ``write`` on a temporary file in ``target``'s folder, flushes it
+    to disk, then renames it over ``target`` (made with its folders)."""
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     try:
@@ -49,7 +51,8 @@ def _write_atomically(target: Path, write: Callable[[IO[bytes]], None]) -> None:
         raise
 
 
-def _sha256(path: Path) -> str:
+def sha256(path: Path) -> str:
+    """The file's SHA-256, hex."""
     digest = hashlib.sha256()
     with path.open("rb") as f:
         for chunk in iter(lambda: f.read(1 << 20), b""):
@@ -76,11 +79,11 @@ def save(
     if not arrays:
         raise ValueError("no arrays to save")
     savez = np.savez_compressed if compress else np.savez
-    _write_atomically(target, lambda f: savez(f, **dict(arrays)))
+    write_atomically(target, lambda f: savez(f, **dict(arrays)))
     full = dict(card)
-    full.update(file=target.name, bytes=target.stat().st_size, sha256=_sha256(target))
+    full.update(file=target.name, bytes=target.stat().st_size, sha256=sha256(target))
     text = json.dumps(full, indent=2, sort_keys=True) + "\n"
-    _write_atomically(card_path(target), lambda f: f.write(text.encode()))
+    write_atomically(card_path(target), lambda f: f.write(text.encode()))
     return target
 
 
@@ -92,7 +95,7 @@ def load(path: str | os.PathLike[str], *, verify: bool = True) -> tuple[dict[str
     """
     target = Path(path)
     card = json.loads(card_path(target).read_text())
-    if verify and card.get("sha256") != _sha256(target):
+    if verify and card.get("sha256") != sha256(target):
         raise ValueError(f"{target}: SHA-256 does not match its card {card_path(target)}")
     with np.load(target) as data:
         arrays = {name: data[name] for name in data.files}
