@@ -84,8 +84,8 @@ smoke: training-venv py-module
 	$(TVPY) training/train_scnn.py --smoke --out out/smoke
 
 # the shipped models: trains KBJAE and the SCNN on freshly generated data and
-# writes assets/models/{kbjae,scnn}.onnx with their model cards (about 30
-# minutes each on two cores; a GPU is used where torch finds one)
+# writes assets/models/{kbjae,scnn}.onnx with their model cards (on two
+# cores about 10 and 25 minutes; a GPU is used where torch finds one)
 train: training-venv py-module
 	$(TVPY) training/train_kbjae.py
 	$(TVPY) training/train_scnn.py
