@@ -72,6 +72,21 @@ def reference(x: np.ndarray, w: list[np.ndarray]) -> np.ndarray:
     return h
 
 
+def finish(nodes, name, inputs, outputs, inits) -> onnx.ModelProto:
+    """A checked opset-17 model of `nodes`; inputs and outputs as (name, dims), float32."""
+    graph = helper.make_graph(
+        nodes,
+        name,
+        [helper.make_tensor_value_info(n, TensorProto.FLOAT, dims) for n, dims in inputs],
+        [helper.make_tensor_value_info(n, TensorProto.FLOAT, dims) for n, dims in outputs],
+        inits,
+    )
+    m = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], producer_name="kflex tools")
+    m.ir_version = 8
+    onnx.checker.check_model(m)
+    return m
+
+
 def model(input_name: str, w: list[np.ndarray]) -> onnx.ModelProto:
     inits = [
         numpy_helper.from_array(OFFSET.astype(np.float32), "offset"),
@@ -90,16 +105,7 @@ def model(input_name: str, w: list[np.ndarray]) -> onnx.ModelProto:
         if layer < 2:
             nodes.append(helper.make_node("LeakyRelu", [out], [f"a{layer}"], alpha=SLOPE))
             h = f"a{layer}"
-    graph = helper.make_graph(
-        nodes,
-        "kbjae_test",
-        [helper.make_tensor_value_info(input_name, TensorProto.FLOAT, ["batch", 2])],
-        [helper.make_tensor_value_info("theta_error", TensorProto.FLOAT, ["batch", 1])],
-        inits,
-    )
-    m = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], producer_name="kflex tools")
-    m.ir_version = 8
-    onnx.checker.check_model(m)
+    m = finish(nodes, "kbjae_test", [(input_name, ["batch", 2])], [("theta_error", ["batch", 1])], inits)
     return m
 
 
@@ -147,16 +153,7 @@ def scnn_model(w: list[np.ndarray]) -> onnx.ModelProto:
         helper.make_node("Gemm", ["f", "fc", "fb"], ["z"]),
         helper.make_node("Sigmoid", ["z"], ["embedding"]),
     ]
-    graph = helper.make_graph(
-        nodes,
-        "scnn_test",
-        [helper.make_tensor_value_info("silhouette", TensorProto.FLOAT, ["batch", 1, 48, 48])],
-        [helper.make_tensor_value_info("embedding", TensorProto.FLOAT, ["batch", 256])],
-        inits,
-    )
-    m = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], producer_name="kflex tools")
-    m.ir_version = 8
-    onnx.checker.check_model(m)
+    m = finish(nodes, "scnn_test", [("silhouette", ["batch", 1, 48, 48])], [("embedding", ["batch", 256])], inits)
     return m
 
 
@@ -224,13 +221,7 @@ def paper_size_models(out: Path) -> None:
         out_name = "embedding" if i == 1 else f"s{i}"
         nodes += [helper.make_node("Gemm", ["flat" if i == 0 else "s0", f"fw{i}", f"fb{i}"], [f"z{i}"]),
                   helper.make_node("Sigmoid", [f"z{i}"], [out_name])]
-    graph = helper.make_graph(
-        nodes, "scnn_table1",
-        [helper.make_tensor_value_info("silhouette", TensorProto.FLOAT, ["batch", 1, 48, 48])],
-        [helper.make_tensor_value_info("embedding", TensorProto.FLOAT, ["batch", 256])], inits)
-    m = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], producer_name="kflex tools")
-    m.ir_version = 8
-    onnx.checker.check_model(m)
+    m = finish(nodes, "scnn_table1", [("silhouette", ["batch", 1, 48, 48])], [("embedding", ["batch", 256])], inits)
     (out / "scnn_table1.onnx").write_bytes(m.SerializeToString())
     w = []
     for a, b in [(2, 200), (200, 200), (200, 200), (200, 1)]:
@@ -246,13 +237,7 @@ def paper_size_models(out: Path) -> None:
         if i < 3:
             nodes.append(helper.make_node("LeakyRelu", [z], [f"a{i}"], alpha=SLOPE))
             h = f"a{i}"
-    graph = helper.make_graph(
-        nodes, "kbjae_table2",
-        [helper.make_tensor_value_info("theta_and_rate", TensorProto.FLOAT, ["batch", 2])],
-        [helper.make_tensor_value_info("theta_error", TensorProto.FLOAT, ["batch", 1])], inits)
-    m = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], producer_name="kflex tools")
-    m.ir_version = 8
-    onnx.checker.check_model(m)
+    m = finish(nodes, "kbjae_table2", [("theta_and_rate", ["batch", 2])], [("theta_error", ["batch", 1])], inits)
     (out / "kbjae_table2.onnx").write_bytes(m.SerializeToString())
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER_WIDTH = {0.0: 9.23, 90.0: 15.1, 180.0: 18.3, 270.0: 18.4}
@@ -35,15 +35,21 @@ def traces(csv_path):
     return out
 
 
-def main():
-    target = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "crates/kflex-model/calibration_loops.png"
+def plant_loops():
+    """The nominal plant's traces per sheath angle: `fit_calibration loops`
+    (the shipped defaults) read back as {sheath: (theta_d list, theta_a list)}."""
     with tempfile.TemporaryDirectory() as tmp:
         data = Path(tmp) / "loops.csv"
         subprocess.run(
             ["cargo", "run", "--release", "--locked", "-q", "-p", "kflex-control",
              "--example", "fit_calibration", "--", "loops", str(data)],
             cwd=ROOT, check=True)
-        loops = traces(data)
+        return traces(data)
+
+
+def main():
+    target = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "crates/kflex-model/calibration_loops.png"
+    loops = plant_loops()
     fig, ax = plt.subplots(figsize=(6.4, 5.6), dpi=120)
     colours = {0.0: "#1b9e77", 90.0: "#d95f02", 180.0: "#7570b3", 270.0: "#e7298a"}
     for sheath, (d, a) in sorted(loops.items()):

@@ -25,10 +25,8 @@ with and without the dead zone at the bottom, and prints the largest RMSE
 it can give at each width: a lag-type loop of the paper's width at 270 deg
 reaches the paper's RMSE only with a long dead zone and a steep climb.
 """
-import csv
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -88,19 +86,11 @@ def best_play(x, plays, target_rmse, target_width):
 
 
 def plant_loops():
-    with tempfile.TemporaryDirectory() as tmp:
-        data = Path(tmp) / "loops.csv"
-        subprocess.run(
-            ["cargo", "run", "--release", "--locked", "-q", "-p", "kflex-control",
-             "--example", "fit_calibration", "--", "loops", str(data)],
-            cwd=ROOT, check=True)
-        out = {}
-        with open(data, newline="") as f:
-            for row in csv.DictReader(f):
-                d, a = out.setdefault(float(row["sheath_deg"]), ([], []))
-                d.append(float(row["theta_d_deg"]))
-                a.append(float(row["theta_a_deg"]))
-    return {k: (np.array(d), np.array(a)) for k, (d, a) in out.items()}
+    """The plant's loops (tools/plot_loops.py runs `fit_calibration loops`) as arrays."""
+    sys.path.insert(0, str(ROOT / "tools"))
+    from plot_loops import plant_loops as loops
+
+    return {k: (np.array(d), np.array(a)) for k, (d, a) in loops().items()}
 
 
 def plant_shape(d, a):

@@ -293,16 +293,7 @@ impl Fusion for AdaptiveKalman {
     }
 
     fn estimate(&self) -> Estimate {
-        Estimate {
-            theta_hat_deg: self.x[0],
-            theta_hat_rate_deg_per_s: self.x[1],
-            covariance: [
-                [self.p[(0, 0)], self.p[(0, 1)]],
-                [self.p[(1, 0)], self.p[(1, 1)]],
-            ],
-            kbjae: self.last[0],
-            ibjae: self.last[1],
-        }
+        Estimate::of_state(&self.x, &self.p, self.last)
     }
 
     fn reset(&mut self) {

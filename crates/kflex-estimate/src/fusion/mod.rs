@@ -82,6 +82,28 @@ pub struct Estimate {
     pub ibjae: SensorUse,
 }
 
+impl Estimate {
+    /// The estimate a filter's state gives: `θ` and `θ'` are the first two
+    /// entries of `x`, their covariance the top-left 2×2 block of `p`.
+    pub(crate) fn of_state<D: nalgebra::Dim, S, T>(
+        x: &nalgebra::Matrix<f64, D, nalgebra::U1, S>,
+        p: &nalgebra::Matrix<f64, D, D, T>,
+        last: [SensorUse; 2],
+    ) -> Self
+    where
+        S: nalgebra::RawStorage<f64, D, nalgebra::U1>,
+        T: nalgebra::RawStorage<f64, D, D>,
+    {
+        Self {
+            theta_hat_deg: x[0],
+            theta_hat_rate_deg_per_s: x[1],
+            covariance: [[p[(0, 0)], p[(0, 1)]], [p[(1, 0)], p[(1, 1)]]],
+            kbjae: last[0],
+            ibjae: last[1],
+        }
+    }
+}
+
 /// A joint-angle fusion filter stepped once per control tick.
 pub trait Fusion {
     /// Advances the filter by one tick of `dt_s` seconds with this tick's
