@@ -11,12 +11,12 @@ STAMP := $(VENV)/.installed
 CARGO ?= cargo
 RUN_ARGS ?=
 
-.PHONY: run test venv build test-rust test-embedded py-module test-python lint fmt bench index-bench fit loops gallery clean
+.PHONY: run test venv build test-rust test-embedded py-module test-python training-venv test-training smoke train lint fmt bench index-bench fit loops gallery clean
 
 run: venv build
 	./target/release/kflex-cli run $(RUN_ARGS)
 
-test: venv test-rust test-embedded test-python
+test: venv test-rust test-embedded test-python test-training
 
 venv: $(STAMP)
 
@@ -53,6 +53,43 @@ py-module: venv
 test-python: venv py-module
 	$(VPY) -m pytest -q tests/python
 
+# The training environment (training/.venv, git-ignored): torch, onnx,
+# onnxscript, onnxruntime (training/requirements.txt) for the scripts in
+# training/ and their smoke tests; kept apart from .venv, so that the kflex
+# package and `make run` never need torch. torch from PyPI comes with its
+# CUDA libraries: about 5.5 GB on disk, about a minute to install on the
+# development machine. The kflex module is the one `make py-module` builds
+# into .venv (editable): a .pth file points the training environment at
+# crates/kflex-py/python.
+TVENV := training/.venv
+TVPY := $(TVENV)/bin/python
+TSTAMP := $(TVENV)/.installed
+
+training-venv: $(TSTAMP)
+
+$(TSTAMP): training/requirements.txt
+	$(PYTHON) -m venv $(TVENV) || { echo "python venv failed: on Debian/Ubuntu, apt-get install python3-venv"; exit 1; }
+	$(TVPY) -m pip install --quiet --upgrade pip
+	$(TVPY) -m pip install --quiet -r training/requirements.txt
+	echo "$(abspath crates/kflex-py/python)" > "$$($(TVPY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')/kflex.pth"
+	touch $(TSTAMP)
+
+# the training scripts' smoke runs (a few steps each, ONNX against torch)
+test-training: training-venv py-module
+	$(TVPY) -m pytest -q training/tests
+
+# both smoke runs, by hand: out/smoke/{kbjae,scnn}.onnx and their cards
+smoke: training-venv py-module
+	$(TVPY) training/train_kbjae.py --smoke --out out/smoke
+	$(TVPY) training/train_scnn.py --smoke --out out/smoke
+
+# the shipped models: trains KBJAE and the SCNN on freshly generated data and
+# writes assets/models/{kbjae,scnn}.onnx with their model cards (on two
+# cores about 10 and 25 minutes; a GPU is used where torch finds one)
+train: training-venv py-module
+	$(TVPY) training/train_kbjae.py
+	$(TVPY) training/train_scnn.py
+
 lint:
 	$(CARGO) fmt --all --check
 	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
@@ -84,4 +121,4 @@ gallery:
 	$(CARGO) run --release --locked -p kflex-model --example gallery -- assets/gallery.png
 
 clean:
-	rm -rf target $(VENV)
+	rm -rf target $(VENV) $(TVENV)

@@ -48,6 +48,9 @@ SAMPLES = {
     "Occlusion": lambda: kflex.Occlusion(fraction=0.1, position=0.5),
     "FrameParams": lambda: kflex.FrameParams(),
     "SegmentParams": lambda: kflex.SegmentParams(),
+    "KinematicSetSpec": lambda: kflex.KinematicSetSpec(amplitude_deg=35.0, frequency_hz=0.159, train=True),
+    "KinematicDatasetConfig": lambda: kflex.KinematicDatasetConfig(),
+    "ImagePairsConfig": lambda: kflex.ImagePairsConfig(),
     "KalmanParams": lambda: kflex.KalmanParams(),
     "AdaptiveParams": lambda: kflex.AdaptiveParams(),
 }

@@ -1,5 +1,6 @@
 //! The one error type of `kflex-control`.
 
+use kflex_estimate::EstimateError;
 use kflex_model::{ModelError, RangeError};
 use thiserror::Error;
 
@@ -10,6 +11,16 @@ pub enum ControlError {
     /// The plant or a trajectory refused its input.
     #[error(transparent)]
     Model(#[from] ModelError),
+    /// An estimation stage failed (e.g. the segmentation found no
+    /// instrument in any frame drawn for a data set's query).
+    #[error(transparent)]
+    Estimate(#[from] EstimateError),
+    /// A worker thread of a data-set generator stopped without a result.
+    #[error("{message}")]
+    Worker {
+        /// What happened.
+        message: String,
+    },
     /// A setting of this crate is outside its range.
     #[error(transparent)]
     OutOfRange(#[from] RangeError),
@@ -43,6 +54,7 @@ impl ControlError {
         match self {
             Self::OutOfRange(e) => Some(e),
             Self::Model(e) => e.range(),
+            Self::Estimate(e) => e.range(),
             _ => None,
         }
     }

@@ -6,6 +6,16 @@
 //! [`loop_width`], [`error_peak_to_peak`]); the compensator (Eq. 3–5) and
 //! the closed loop come with the estimators.
 //!
+//! It also makes the learned estimators' training data on the testbed: the
+//! kinematic set D^k of KBJAE ([`KinematicDatasetConfig`]: periodic signals
+//! through perturbed plants, with the tracker's noise) and the image-pair set
+//! D^I of IBJAE's Siamese CNN ([`ImagePairsConfig`]: segmented frames of the
+//! as-built robot against the nominal model's silhouettes), with the nominal
+//! silhouette database IBJAE retrieves from ([`ImagePairsConfig::database`]).
+//! Both are deterministic from a seed, whatever the number of threads, and
+//! carry a [`DatasetCard`]. `cargo run --release -p kflex-control --example
+//! dataset_speed` measures them.
+//!
 //! ## Cargo features
 //!
 //! * `multibody` (default): experiments may run the plant with the rapier3d
@@ -14,10 +24,15 @@
 //!   off and compiles none of rapier3d, parry3d or image.
 #![warn(missing_docs)]
 
+mod dataset;
 mod error;
 mod experiment;
 mod metrics;
 
+pub use dataset::{
+    DatasetCard, ImageDatabase, ImagePairs, ImagePairsConfig, KinematicDataset,
+    KinematicDatasetConfig, KinematicSet, KinematicSetSpec,
+};
 pub use error::{ControlError, Result};
 pub use experiment::{GridRow, OpenLoopGrid, OpenLoopScenario, RunMetrics, Trace};
 pub use metrics::{LOOP_BIN_DEG, MeanStd, error_peak_to_peak, loop_width, peak_loss, rmse};

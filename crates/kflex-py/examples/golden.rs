@@ -13,7 +13,7 @@
 use std::error::Error;
 use std::path::PathBuf;
 
-use kflex_control::OpenLoopScenario;
+use kflex_control::{ImagePairsConfig, KinematicDatasetConfig, OpenLoopScenario};
 use kflex_estimate::{EstimateError, SegmentParams, Segmenter};
 use kflex_model::{
     AuroraNoise, BuildTolerances, Camera, Command, FrameParams, Instrument, Mask, Occlusion, Plant,
@@ -122,7 +122,42 @@ fn main() -> Result<(), Box<dyn Error>> {
         .shape(20.0, 15.0)?
         .tip_mm;
 
+    // the training data sets, small
+    let kinematic_config = KinematicDatasetConfig {
+        sets: KinematicDatasetConfig::default().sets[4..8].to_vec(),
+        samples_per_set: 200,
+        ..KinematicDatasetConfig::default()
+    };
+    let kinematic = kinematic_config.generate(1)?;
+    let pairs_config = ImagePairsConfig {
+        pairs: 8,
+        block: 2,
+        seed: 11,
+        ..ImagePairsConfig::default()
+    };
+    let pairs = pairs_config.generate(1)?;
+
     let golden = json!({
+        "datasets": {
+            "kinematic": {
+                "config": kinematic_config,
+                "sets": kinematic.sets,
+                "card": kinematic.card,
+            },
+            "pairs": {
+                "config": pairs_config,
+                "x_b": pairs.x_b,
+                "x_r": pairs.x_r,
+                "s": pairs.s,
+                "hard": pairs.hard,
+                "band": pairs.band,
+                "theta_b_deg": pairs.theta_b_deg,
+                "translation_b_mm": pairs.translation_b_mm,
+                "theta_r_deg": pairs.theta_r_deg,
+                "translation_r_mm": pairs.translation_r_mm,
+                "card": pairs.card,
+            },
+        },
         "plant": {
             "config": config,
             "commands_deg": commands,

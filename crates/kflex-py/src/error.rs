@@ -6,7 +6,7 @@
 //! | other bad values (non-finite input, unreachable tendon length, unknown background or tissue, a metric's bad series, a field value serde refuses) | `ValueError` |
 //! | a buffer of the wrong size, a field of the wrong type, an unknown field | `TypeError` |
 //! | no instrument in a frame | [`NoInstrumentError`](PyNoInstrumentError), a `RuntimeError` (`Segmenter.segment` returns `None` instead) |
-//! | a diverged joint, nothing in view, a feature this build lacks, anything new | `RuntimeError` |
+//! | a diverged joint, nothing in view, a feature this build lacks, a data-set worker that stopped, anything new | `RuntimeError` |
 //!
 //! [`classify`] decides the exception from the error alone (no interpreter
 //! needed, so it is unit-tested in plain Rust); `From<Error> for PyErr`
@@ -113,15 +113,22 @@ fn classify_model(e: &ModelError) -> Kind {
     }
 }
 
+fn classify_estimate(e: &EstimateError) -> Kind {
+    match e {
+        EstimateError::Model(m) => classify_model(m),
+        EstimateError::OutOfRange(r) => Kind::Range(*r),
+        EstimateError::NoInstrument { .. } => Kind::NoInstrument,
+        EstimateError::ImageSize { .. } => Kind::Type,
+        _ => Kind::Runtime,
+    }
+}
+
 /// The exception `e` becomes (`None` for an error that is already a Python one).
 pub(crate) fn classify(e: &Error) -> Option<Kind> {
     Some(match e {
         Error::Model(m) => classify_model(m),
-        Error::Estimate(EstimateError::Model(m)) => classify_model(m),
-        Error::Estimate(EstimateError::OutOfRange(r)) => Kind::Range(*r),
-        Error::Estimate(EstimateError::NoInstrument { .. }) => Kind::NoInstrument,
-        Error::Estimate(EstimateError::ImageSize { .. }) => Kind::Type,
-        Error::Estimate(_) => Kind::Runtime,
+        Error::Estimate(m) => classify_estimate(m),
+        Error::Control(ControlError::Estimate(m)) => classify_estimate(m),
         Error::Control(ControlError::Model(m)) => classify_model(m),
         Error::Control(ControlError::OutOfRange(r)) => Kind::Range(*r),
         Error::Control(
@@ -217,6 +224,7 @@ mod tests {
             Error::Estimate(EstimateError::Model(ModelError::OutOfRange(r))),
             Error::Control(ControlError::OutOfRange(r)),
             Error::Control(ControlError::Model(ModelError::OutOfRange(r))),
+            Error::Control(ControlError::Estimate(EstimateError::OutOfRange(r))),
         ] {
             assert_eq!(classify(&e), Some(Kind::Range(r)), "{e:?}");
         }
@@ -299,6 +307,19 @@ mod tests {
             (
                 Error::Serde("unknown variant `x`, expected `analytic` or `rapier`".into()),
                 Kind::Value,
+            ),
+            (
+                Error::Control(ControlError::Estimate(EstimateError::NoInstrument {
+                    pixels: 0,
+                    min: 5,
+                })),
+                Kind::NoInstrument,
+            ),
+            (
+                Error::Control(ControlError::Worker {
+                    message: "a worker panicked".into(),
+                }),
+                Kind::Runtime,
             ),
             (Error::NoField("no field".into()), Kind::Attribute),
         ];

@@ -16,8 +16,12 @@
 //! * Errors become Python exceptions in one place (`error.rs`): `RangeError`
 //!   (a `ValueError` with the bounds), `ValueError`, `TypeError`,
 //!   `RuntimeError`.
+//! * Training data (`KinematicDatasetConfig.generate`,
+//!   `ImagePairsConfig.generate`, `ImagePairsConfig.database`) comes back
+//!   as a `dict` of numpy arrays and the data set's card; the pure-Python
+//!   `kflex.npz` writes them to `.npz` files with their cards, atomically.
 //! * Long calls (runs, rendering, silhouettes, segmentation, working
-//!   regions) let go of the interpreter (`Python::detach`); their array
+//!   regions, data sets) let go of the interpreter (`Python::detach`); their array
 //!   inputs are copied first (`array.rs`).
 //!
 //! kflex-model is used without default features: no rapier3d, the analytic
@@ -26,6 +30,7 @@
 
 mod array;
 mod camera;
+mod dataset;
 mod error;
 mod fusion;
 mod kinematics;
@@ -39,6 +44,7 @@ use pyo3::prelude::*;
 #[pymodule]
 fn _kflex(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("RangeError", py.get_type::<error::PyRangeError>())?;
     m.add(
         "NoInstrumentError",
@@ -85,5 +91,8 @@ fn _kflex(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<fusion::PyPaperKalman>()?;
     m.add_class::<fusion::PyAdaptiveKalman>()?;
     m.add_function(wrap_pyfunction!(segment::segment, m)?)?;
+    m.add_class::<dataset::PyKinematicSetSpec>()?;
+    m.add_class::<dataset::PyKinematicDatasetConfig>()?;
+    m.add_class::<dataset::PyImagePairsConfig>()?;
     Ok(())
 }

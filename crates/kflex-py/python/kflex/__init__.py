@@ -7,6 +7,11 @@ Errors: ``RangeError`` (a ``ValueError`` carrying ``name``, ``value``,
 ``min``, ``max``) for out-of-range values, ``ValueError`` for other bad
 values, ``TypeError`` for a wrong dtype or shape, ``RuntimeError`` for
 runtime faults.
+
+Training data: ``KinematicDatasetConfig().generate()`` (KBJAE's D^k) and
+``ImagePairsConfig().generate()`` / ``.database()`` (IBJAE's D^I and its
+retrieval database) return ``(arrays, card)``; ``kflex.npz.save`` and
+``kflex.npz.load`` keep them on disk as ``.npz`` with a JSON card beside.
 """
 
 from kflex._kflex import (
@@ -21,12 +26,15 @@ from kflex._kflex import (
     Estimate,
     Frame,
     FrameParams,
+    ImagePairsConfig,
     Instrument,
     InstrumentParams,
     InstrumentShape,
     Intrinsics,
     JointParams,
     KalmanParams,
+    KinematicDatasetConfig,
+    KinematicSetSpec,
     Lens,
     NoInstrumentError,
     Occlusion,
@@ -54,6 +62,9 @@ from kflex._kflex import (
     WorkingRegions,
     segment,
 )
+from kflex._kflex import (
+    __version__ as __version__,
+)
 
 __all__ = [
     "AdaptiveKalman",
@@ -67,12 +78,15 @@ __all__ = [
     "Estimate",
     "Frame",
     "FrameParams",
+    "ImagePairsConfig",
     "Instrument",
     "InstrumentParams",
     "InstrumentShape",
     "Intrinsics",
     "JointParams",
     "KalmanParams",
+    "KinematicDatasetConfig",
+    "KinematicSetSpec",
     "Lens",
     "NoInstrumentError",
     "Occlusion",

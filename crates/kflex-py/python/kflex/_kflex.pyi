@@ -13,6 +13,8 @@ BoolArray: TypeAlias = npt.NDArray[np.bool_]
 FloatsIn: TypeAlias = float | npt.NDArray[np.float64] | npt.NDArray[np.float32]
 FloatsOut: TypeAlias = float | npt.NDArray[np.float64]
 
+__version__: str
+
 class RangeError(ValueError):
     """A value outside its valid range; the bounds' ends may be infinite."""
 
@@ -442,3 +444,48 @@ class AdaptiveKalman:
     ) -> dict[str, npt.NDArray[Any]]: ...
     def estimate(self) -> Estimate: ...
     def reset(self) -> None: ...
+
+# ---- training data -------------------------------------------------------------
+
+Arrays: TypeAlias = dict[str, npt.NDArray[Any]]
+
+class KinematicSetSpec(_Params):
+    amplitude_deg: float
+    frequency_hz: float
+    train: bool
+
+class KinematicDatasetConfig(_Params):
+    sets: list[dict[str, Any]]
+    samples_per_set: int
+    dt_s: float
+    warmup_cycles: int
+    plant: dict[str, Any]
+    spread: float
+    noise: dict[str, float] | None
+    translation_mm: float
+    seed: int
+    def validate(self) -> None: ...
+    def generate(self, threads: int = 0) -> tuple[Arrays, dict[str, Any]]: ...
+
+class ImagePairsConfig(_Params):
+    pairs: int
+    seed: int
+    poses: dict[str, list[float]]
+    theta_step_deg: float
+    translation_step_mm: float
+    hard_share: float
+    hard_offset_deg: list[float]
+    tolerances: dict[str, float]
+    backgrounds: list[Literal["colon", "stomach", "larynx"]]
+    tissues: list[Literal["organ", "grey", "pale", "white", "blue_green", "yellow"]]
+    background_seeds: int
+    block: int
+    illumination_gain: list[float]
+    noise_std: list[float]
+    blur_share: float
+    blur_px: list[float]
+    segment: dict[str, Any]
+    max_attempts: int
+    def validate(self) -> None: ...
+    def generate(self, threads: int = 0) -> tuple[Arrays, dict[str, Any]]: ...
+    def database(self, threads: int = 0) -> tuple[Arrays, dict[str, Any]]: ...
