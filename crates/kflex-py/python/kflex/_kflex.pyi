@@ -407,8 +407,7 @@ class Estimate:
     ibjae: str
     ibjae_nis: float | None
 
-class PaperKalman:
-    def __init__(self, params: KalmanParams | None = None) -> None: ...
+class _Fusion:
     def step(
         self,
         dt_s: float,
@@ -426,24 +425,11 @@ class PaperKalman:
     def estimate(self) -> Estimate: ...
     def reset(self) -> None: ...
 
-class AdaptiveKalman:
+class PaperKalman(_Fusion):
+    def __init__(self, params: KalmanParams | None = None) -> None: ...
+
+class AdaptiveKalman(_Fusion):
     def __init__(self, params: AdaptiveParams | None = None) -> None: ...
-    def step(
-        self,
-        dt_s: float,
-        kbjae_deg: float | None = None,
-        ibjae_deg: float | None = None,
-        ibjae_sigma_deg: float | None = None,
-    ) -> Estimate: ...
-    def run(
-        self,
-        dt_s: float,
-        kbjae_deg: npt.ArrayLike | None = None,
-        ibjae_deg: npt.ArrayLike | None = None,
-        ibjae_sigma_deg: npt.ArrayLike | None = None,
-    ) -> dict[str, npt.NDArray[Any]]: ...
-    def estimate(self) -> Estimate: ...
-    def reset(self) -> None: ...
 
 # ---- training data -------------------------------------------------------------
 
