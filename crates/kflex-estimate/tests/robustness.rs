@@ -19,18 +19,18 @@ use matrix::{Bench, Condition, cases};
 // segmentation finds no instrument scores 0. The tissue colours are rendered
 // in the scene (`FrameParams::tissue`), so the steel reflects them.
 const BOUNDS: [(Condition, f64, f64); 12] = [
-    (Condition::Baseline, 0.82, 0.68), // BELOW GOAL: 0.826 / 0.685 (median 0.957 / 0.934)
-    (Condition::Gain(0.4), 0.49, 0.26), // BELOW GOAL: 0.496 / 0.266
-    (Condition::Gain(1.6), 0.62, 0.48), // BELOW GOAL: 0.622 / 0.482
-    (Condition::Noise(0.1), 0.64, 0.49), // BELOW GOAL: 0.646 / 0.493
-    (Condition::Blur(3.0), 0.73, 0.58), // BELOW GOAL: 0.734 / 0.589
-    (Condition::Tint(0.25), 0.63, 0.41), // BELOW GOAL: 0.640 / 0.418
-    (Condition::Specular, 0.80, 0.65), // BELOW GOAL: 0.805 / 0.652
-    (Condition::Tissue(Tissue::Grey), 0.07, 0.11), // BELOW GOAL: 0.075 / 0.111 (median 0.901 / 0.862)
-    (Condition::Tissue(Tissue::Pale), 0.60, 0.50), // BELOW GOAL: 0.610 / 0.503 (median 0.909 / 0.889)
-    (Condition::Tissue(Tissue::White), 0.07, 0.09), // BELOW GOAL: 0.079 / 0.091 (median 0.883 / 0.843)
-    (Condition::Tissue(Tissue::BlueGreen), 0.90, 0.85), // 0.928 / 0.876
-    (Condition::Tissue(Tissue::Yellow), 0.90, 0.84), // BELOW GOAL: 0.903 / 0.846
+    (Condition::Baseline, 0.83, 0.71), // BELOW GOAL: 0.839 / 0.711 (median 0.958 / 0.941)
+    (Condition::Gain(0.4), 0.82, 0.68), // BELOW GOAL: 0.826 / 0.687
+    (Condition::Gain(1.6), 0.90, 0.85), // 0.911 / 0.875
+    (Condition::Noise(0.1), 0.82, 0.77), // BELOW GOAL: 0.821 / 0.772
+    (Condition::Blur(3.0), 0.75, 0.61), // BELOW GOAL: 0.760 / 0.617 (median 0.877 / 0.839)
+    (Condition::Tint(0.25), 0.67, 0.47), // BELOW GOAL: 0.672 / 0.474
+    (Condition::Specular, 0.82, 0.67), // BELOW GOAL: 0.821 / 0.677
+    (Condition::Tissue(Tissue::Grey), 0.87, 0.79), // BELOW GOAL: 0.874 / 0.800 (median 0.957 / 0.948)
+    (Condition::Tissue(Tissue::Pale), 0.84, 0.72), // BELOW GOAL: 0.848 / 0.730 (median 0.960 / 0.948)
+    (Condition::Tissue(Tissue::White), 0.68, 0.59), // BELOW GOAL: 0.682 / 0.595 (median 0.955 / 0.948)
+    (Condition::Tissue(Tissue::BlueGreen), 0.92, 0.87), // 0.924 / 0.878
+    (Condition::Tissue(Tissue::Yellow), 0.93, 0.90), // 0.934 / 0.901
 ];
 
 /// Frames of the matrix the segmentation calls empty, at most, per tissue

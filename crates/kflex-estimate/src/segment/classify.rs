@@ -74,13 +74,40 @@ fn dist2(a: [f32; 2], b: [f32; 2]) -> f32 {
     (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)
 }
 
+/// Calls `f(a, b)` for the region roots on either side of every cell edge
+/// (right and down neighbours) where they differ.
+fn for_each_edge(cell_root: &[u32], cols: usize, mut f: impl FnMut(usize, usize)) {
+    if cols == 0 {
+        return;
+    }
+    let mut rows = cell_root.chunks_exact(cols).peekable();
+    while let Some(row) = rows.next() {
+        for pair in row.windows(2) {
+            if pair[0] != pair[1] {
+                f(pair[0] as usize, pair[1] as usize);
+            }
+        }
+        if let Some(below) = rows.peek() {
+            for (&a, &b) in row.iter().zip(below.iter()) {
+                if a != b {
+                    f(a as usize, b as usize);
+                }
+            }
+        }
+    }
+}
+
 /// Sorts every merged region (root of `s.parent`) into instrument or tissue
 /// and marks the cells of instrument regions in `s.cells`:
 ///
 /// 1. regions darker than [`SegmentParams::min_relative_value`] of the
 ///    region of interest's median brightness are tissue (lumen, shadow);
 /// 2. regions whose darkest channel is above [`SegmentParams::clip_value`]
-///    (clipped specular light) are left for step 5;
+///    (clipped specular light), whose brightest is above
+///    [`SegmentParams::saturated_value`] (a clipped channel: no trustworthy
+///    chromaticity), or which are highlights (small, brighter than the
+///    median and [`SegmentParams::highlight_ratio`] times brighter than the
+///    regions around them) are left for step 5;
 /// 3. the tissue colour `T` starts at the median chromaticity of the bright
 ///    regions on the region of interest's border where they hold more than
 ///    60 % of it (the instrument enters from one side, so it holds a
@@ -102,13 +129,14 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
         region_class,
         votes,
         cell_root,
+        neighbours,
         ..
     } = s;
     // 1–3: the frame's statistics
     let mut brightness = Histogram::new();
     for (i, r) in regions.iter().enumerate() {
         if parent[i] as usize == i {
-            brightness.add(r.mean.iter().sum::<f32>(), 0.0, 3.0, f64::from(r.count));
+            brightness.add(r.lum, 0.0, 3.0, f64::from(r.count));
         }
     }
     let median_l = brightness.quantile(0.5, 0.0, 3.0);
@@ -121,12 +149,53 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
         let m = r.mean;
         if parent[i] as usize != i || m[0] + m[1] + m[2] < min_l {
             DARK
-        } else if m[0].min(m[1]).min(m[2]) > p.clip_value {
+        } else if m[0].min(m[1]).min(m[2]) > p.clip_value
+            || m[0].max(m[1]).max(m[2]) > p.saturated_value
+        {
             CLIPPED
         } else {
             BRIGHT
         }
     }));
+    // highlights: small regions brighter than the median and than what
+    // surrounds them (by cell edges) take their neighbours' class, like
+    // clipped ones
+    cell_root.clear();
+    cell_root.extend(labels.iter().map(|&l| parent[l as usize]));
+    if p.highlight_ratio > 0.0 {
+        let lum = |r: usize| regions[r].lum;
+        let total: f32 = (0..regions.len())
+            .filter(|&i| parent[i] as usize == i)
+            .map(|i| regions[i].count)
+            .sum();
+        // a highlight's own tests first: without a candidate, no edge pass
+        let candidate = |i: usize, class: u8| {
+            let r = &regions[i];
+            class == BRIGHT
+                && r.count < p.highlight_max * total
+                && r.lum > median_l
+                && r.mean.iter().copied().fold(f32::INFINITY, f32::min) > p.highlight_min_value
+        };
+        if (0..regions.len()).any(|i| candidate(i, region_class[i])) {
+            neighbours.clear();
+            neighbours.resize(regions.len(), [0.0, 0.0]);
+            for_each_edge(cell_root, cols, |a, b| {
+                neighbours[a][0] += lum(b);
+                neighbours[a][1] += 1.0;
+                neighbours[b][0] += lum(a);
+                neighbours[b][1] += 1.0;
+            });
+            for i in 0..regions.len() {
+                let [sum, edges] = neighbours[i];
+                if candidate(i, region_class[i])
+                    && edges > 0.0
+                    && lum(i) > p.highlight_ratio * sum / edges
+                {
+                    region_class[i] = CLIPPED;
+                }
+            }
+        }
+    }
     // the tissue colour starts at the median colour of the regions whose
     // distance from the metal's colour lies between the median and the 80th
     // percentile (pixel-weighted): tissue, whether the instrument covers a
@@ -136,7 +205,7 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     for (r, &c) in regions.iter().zip(region_class.iter()) {
         if c == BRIGHT {
             far.add(
-                dist2(chroma(r.mean), p.metal_chroma).sqrt(),
+                dist2(r.chroma, p.metal_chroma).sqrt(),
                 0.0,
                 2.0,
                 f64::from(r.count),
@@ -147,7 +216,7 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     let (mut hx, mut hy, mut fallback) = (Histogram::new(), Histogram::new(), [0.0f32; 2]);
     for (r, &c) in regions.iter().zip(region_class.iter()) {
         if c == BRIGHT {
-            let ch = chroma(r.mean);
+            let ch = r.chroma;
             fallback = ch;
             let d = dist2(ch, p.metal_chroma).sqrt();
             if d >= near && d <= farthest {
@@ -175,7 +244,7 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
         border += 1;
         let root = parent[l as usize] as usize;
         if region_class[root] == BRIGHT {
-            let ch = chroma(regions[root].mean);
+            let ch = regions[root].chroma;
             bx.add(ch[0], -1.0, 1.0, 1.0);
             by.add(ch[1], -1.0, 1.0, 1.0);
         }
@@ -196,7 +265,7 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
             if c != BRIGHT {
                 continue;
             }
-            let ch = chroma(r.mean);
+            let ch = r.chroma;
             let w = f64::from(r.count);
             if dist2(ch, metal) < dist2(ch, tissue) {
                 sum_m = [
@@ -221,7 +290,7 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     instrument.extend(regions.iter().zip(region_class.iter()).map(|(r, &c)| {
         u8::from(
             c == BRIGHT && {
-                let ch = chroma(r.mean);
+                let ch = r.chroma;
                 dist2(ch, metal) < dist2(ch, tissue)
             },
         )
@@ -230,31 +299,15 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     if region_class.contains(&CLIPPED) {
         votes.clear();
         votes.resize(regions.len(), [0, 0]);
-        // each cell's region root once, so that the neighbours' test below
-        // reads two arrays in order and looks up only the pairs that touch
-        // a clipped region
-        cell_root.clear();
-        cell_root.extend(labels.iter().map(|&l| parent[l as usize]));
         let mut vote = |ra: usize, rb: usize| {
             if region_class[ra] == CLIPPED && region_class[rb] != CLIPPED {
                 votes[ra][usize::from(instrument[rb])] += 1;
             }
         };
-        let n = cell_root.len();
-        for i in 0..n {
-            let a = cell_root[i] as usize;
-            for j in [i + 1, i + cols] {
-                let across_row = j == i + 1 && j % cols == 0;
-                if j >= n || across_row {
-                    continue;
-                }
-                let b = cell_root[j] as usize;
-                if a != b {
-                    vote(a, b);
-                    vote(b, a);
-                }
-            }
-        }
+        for_each_edge(cell_root, cols, |a, b| {
+            vote(a, b);
+            vote(b, a);
+        });
         for (i, c) in region_class.iter().enumerate() {
             if *c == CLIPPED {
                 instrument[i] = u8::from(votes[i][1] > votes[i][0]);

@@ -23,8 +23,26 @@ pub struct SegmentParams {
     pub split_range: f32,
     /// Smallest block side, px.
     pub min_block: u32,
-    /// Largest colour distance between adjacent regions that are merged.
+    /// Largest colour distance between adjacent regions that are merged
+    /// (before the allowance for noise, [`SegmentParams::merge_noise_z`]).
     pub merge_distance: f32,
+    /// Mean brightness (`r + g + b` on `[0, 3]`) of a region of interest for
+    /// which `split_range` and `merge_distance` are set. A darker region
+    /// scales both down in proportion (to at most a fifth), so that an
+    /// illumination gain below 1 splits and merges as at gain 1; a brighter
+    /// one keeps them.
+    pub reference_brightness: f32,
+    /// Merging allows for the sensor noise each frame shows: two regions of
+    /// `n_a` and `n_b` pixels may differ by `z σ √(3 (1/n_a + 1/n_b))` more
+    /// than `merge_distance`, with σ estimated from the frame (the median
+    /// absolute difference of neighbouring pixels) and `z` this.
+    pub merge_noise_z: f32,
+    /// Largest chromaticity difference between merged regions (before the
+    /// allowance for noise, which grows as the regions darken). Steel on grey,
+    /// pale or white tissue differs from it by about 0.01–0.02 in
+    /// chromaticity and hardly at all in colour distance: without this test
+    /// the two merge into one region wherever they are equally bright.
+    pub merge_chroma: f32,
     /// The instrument's metal as chromaticity `[x, y]` (redness and green
     /// against blue over brightness, see [`Segmenter`]): where the threshold's
     /// instrument class starts. The default is the K-FLEX steel's base colour
@@ -39,6 +57,22 @@ pub struct SegmentParams {
     /// A region whose darkest channel is above this is clipped specular light
     /// and takes the class of the regions around it.
     pub clip_value: f32,
+    /// A region whose brightest channel is above this has lost its
+    /// chromaticity to the sensor's clipping (bright tissue under a high
+    /// gain turns pale) and takes the class of the regions around it too.
+    pub saturated_value: f32,
+    /// A region brighter than the region of interest's median and than the
+    /// mean of its neighbours by this factor, and smaller than
+    /// [`SegmentParams::highlight_max`], is a highlight (wet mucosa, the
+    /// steel's own sheen) and takes the class of the regions around it;
+    /// 0 turns the test off.
+    pub highlight_ratio: f32,
+    /// Largest highlight, as a share of the region of interest.
+    pub highlight_max: f32,
+    /// Least darkest channel of a highlight: highlights are near white,
+    /// and a small steel part (a far gripper) brighter than the tissue
+    /// around it is not.
+    pub highlight_min_value: f32,
     /// Smallest instrument component kept, as a share of the region of interest.
     pub min_component: f32,
     /// Smallest instrument share of the region of interest that counts as found.
@@ -53,9 +87,16 @@ impl Default for SegmentParams {
             split_range: 0.12,
             min_block: 2,
             merge_distance: 0.08,
+            reference_brightness: 1.3,
+            merge_noise_z: 2.0,
+            merge_chroma: 0.006,
             metal_chroma: classify::chroma([0.787, 0.800, 0.825]),
             min_relative_value: 0.15,
             clip_value: 0.94,
+            saturated_value: 0.97,
+            highlight_ratio: 1.2,
+            highlight_max: 0.015,
+            highlight_min_value: 0.7,
             min_component: 0.004,
             min_instrument: 0.002,
             out: 48,
@@ -71,6 +112,40 @@ pub struct Segmentation {
     /// Resampled to `out × out` for IBJAE.
     pub small: Mask,
 }
+
+/// The sensor noise's standard deviation on the [0, 1] scale, estimated
+/// from the region's own pixels: the median absolute difference of
+/// horizontally adjacent green values over every other row (for pure noise
+/// of σ, the difference has σ√2 and its median absolute value 0.954 σ);
+/// edges and texture are a minority of the pairs and barely move the median.
+fn noise_sigma(region: &Region2d) -> f32 {
+    let mut hist = [0u32; 256];
+    let mut n = 0u32;
+    for y in (0..region.height).step_by(2) {
+        let row = &region.rgb[region.first + y * region.stride..][..3 * region.width];
+        for (a, b) in row
+            .iter()
+            .skip(1)
+            .step_by(3)
+            .zip(row.iter().skip(4).step_by(3))
+        {
+            hist[usize::from(a.abs_diff(*b))] += 1;
+            n += 1;
+        }
+    }
+    let (mut acc, half) = (0u32, n.div_ceil(2));
+    for (d, &c) in hist.iter().enumerate() {
+        acc += c;
+        if acc >= half && c > 0 {
+            return d as f32 / (0.954 * 255.0);
+        }
+    }
+    0.0
+}
+
+/// The least a dark region of interest scales the split and merge
+/// thresholds by (see [`SegmentParams::reference_brightness`]).
+const MIN_SCALE: f32 = 0.2;
 
 /// Largest region of interest, px (2²⁴: a 4K frame, 8.3 MP, fits; block sums are `i64`).
 const MAX_ROI_PIXELS: u64 = 1 << 24;
@@ -102,13 +177,18 @@ pub fn segment(
 /// 2. **Split**: a quadtree of aligned power-of-two blocks. A block is split in
 ///    four while the range of its brightness or of its redness exceeds
 ///    [`SegmentParams::split_range`] and its side exceeds [`SegmentParams::min_block`]
-///    px (at least 2). Block statistics (ranges and colour sums, in integers) come
+///    px (at least 2); in a region of interest darker than
+///    [`SegmentParams::reference_brightness`] the range shrinks in proportion.
+///    Block statistics (ranges and colour sums, in integers) come
 ///    from a pyramid built bottom-up in one pass, so the split is linear in the
 ///    pixels. On x86-64 CPUs with AVX2 the pyramid runs on a vectorised copy of
 ///    the same code, chosen at run time.
 /// 3. **Merge**: adjacent leaves whose mean colours differ by less than
-///    [`SegmentParams::merge_distance`] become one region (union–find over the
-///    leaves' adjacency, on the regions' running means). No leaf is smaller than
+///    [`SegmentParams::merge_distance`] (scaled like the split's range) and
+///    whose chromaticities differ by less than [`SegmentParams::merge_chroma`],
+///    each widened by what the frame's own noise explains for regions of
+///    their sizes ([`SegmentParams::merge_noise_z`]), become one region
+///    (union–find over the leaves' adjacency, on the regions' running means). No leaf is smaller than
 ///    a 2×2 cell, so merging, thresholding and the component filter work on the
 ///    grid of cells, a quarter of the pixels.
 /// 4. **Threshold**, from the frame's own statistics: each merged region's
@@ -120,8 +200,10 @@ pub fn segment(
 ///    tissue class, re-estimated twice). Regions darker than
 ///    [`SegmentParams::min_relative_value`] of the region's median brightness
 ///    are tissue (lumen); clipped specular regions (darkest channel above
-///    [`SegmentParams::clip_value`]) take the class of the regions around
-///    them. A frame of one colour has nothing to tell apart and finds no
+///    [`SegmentParams::clip_value`]), regions with a clipped channel
+///    ([`SegmentParams::saturated_value`]) and small highlights
+///    ([`SegmentParams::highlight_ratio`]) take the class of the regions
+///    around them. A frame of one colour has nothing to tell apart and finds no
 ///    instrument, whatever the colour.
 ///    Tape is red, so a taped part is lost, as in the paper. Connected instrument
 ///    components smaller than [`SegmentParams::min_component`] of the region
@@ -159,6 +241,8 @@ struct Scratch {
     votes: Vec<[u32; 2]>,
     /// Per cell: the root of its region (for the clipped regions' vote).
     cell_root: Vec<u32>,
+    /// Per region: summed brightness of the regions across its cell edges, and the edges.
+    neighbours: Vec<[f32; 2]>,
     cells: Vec<u8>,
     seen: Vec<bool>,
     flood: Vec<usize>,
@@ -174,8 +258,12 @@ impl Segmenter {
     /// # Errors
     /// [`EstimateError::OutOfRange`] naming the first parameter out of its
     /// range, in this order (NaN is out of every range): `split_range` outside
-    /// `[0, 3]`, `merge_distance` outside `[0, 2]`, `max_saturation` outside
-    /// `[0, 1]`, `max_redness` outside `[-1, 1]`, `min_value`,
+    /// `[0, 3]`, `merge_distance` outside `[0, 2]`, `reference_brightness`
+    /// outside `[0.01, 3]`, `merge_noise_z` outside `[0, 10]`, `merge_chroma`
+    /// outside `[0, 2]`, either `metal_chroma` component outside `[-1, 1]`,
+    /// `min_relative_value`, `clip_value` or `saturated_value` outside
+    /// `[0, 1]`, `highlight_ratio` outside `[0, 100]`, `highlight_max`,
+    /// `highlight_min_value`,
     /// `min_component` or `min_instrument` outside `[0, 1]`, `out` outside
     /// `[1, 4096]` px. `min_block` is not checked (blocks stop at 2 px
     /// anyway).
@@ -183,10 +271,22 @@ impl Segmenter {
         let check = |name, value: f32, lo, hi| Bounds::closed(lo, hi).check(name, f64::from(value));
         check("split_range", params.split_range, 0.0, 3.0)?;
         check("merge_distance", params.merge_distance, 0.0, 2.0)?;
+        check(
+            "reference_brightness",
+            params.reference_brightness,
+            0.01,
+            3.0,
+        )?;
+        check("merge_noise_z", params.merge_noise_z, 0.0, 10.0)?;
+        check("merge_chroma", params.merge_chroma, 0.0, 2.0)?;
         check("metal_chroma[0]", params.metal_chroma[0], -1.0, 1.0)?;
         check("metal_chroma[1]", params.metal_chroma[1], -1.0, 1.0)?;
         check("min_relative_value", params.min_relative_value, 0.0, 1.0)?;
         check("clip_value", params.clip_value, 0.0, 1.0)?;
+        check("saturated_value", params.saturated_value, 0.0, 1.0)?;
+        check("highlight_ratio", params.highlight_ratio, 0.0, 100.0)?;
+        check("highlight_max", params.highlight_max, 0.0, 1.0)?;
+        check("highlight_min_value", params.highlight_min_value, 0.0, 1.0)?;
         check("min_component", params.min_component, 0.0, 1.0)?;
         check("min_instrument", params.min_instrument, 0.0, 1.0)?;
         Bounds::closed(1.0, 4096.0).check("out", f64::from(params.out))?;
@@ -275,8 +375,19 @@ impl Segmenter {
         // grid of cells (a quarter of the pixels), and the pixel mask is filled last.
         let (cols, rows) = (rw.div_ceil(2), rh.div_ceil(2));
         let depth = pyramid(&region, s);
-        split(s, depth, rw, rh, p);
-        merge(s, cols, rows, p.merge_distance);
+        // a darker region of interest splits and merges at proportionally
+        // smaller differences (an illumination gain leaves the result alone);
+        // merging also allows for the sensor noise the frame itself shows
+        let mean_l = s.levels[depth - 1].sum[0][0] as f64 / (255.0 * (rw * rh) as f64);
+        let scale = (mean_l as f32 / p.reference_brightness).clamp(MIN_SCALE, 1.0);
+        let scaled = SegmentParams {
+            split_range: p.split_range * scale,
+            merge_distance: p.merge_distance * scale,
+            ..p
+        };
+        split(s, depth, rw, rh, scaled);
+        let noise = p.merge_noise_z * noise_sigma(&region);
+        merge(s, cols, rows, &scaled, noise);
         classify(s, &p, cols);
         let min_component = (p.min_component * (rw * rh) as f32).ceil() as usize;
         let count = drop_small_components(s, cols, rows, rw, rh, min_component);

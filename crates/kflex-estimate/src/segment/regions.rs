@@ -1,6 +1,7 @@
 //! Regions of the split and merge: the quadtree leaves, their union by
 //! colour, and the filter that drops small instrument components.
 
+use super::classify::chroma;
 use super::{Scratch, SegmentParams};
 
 /// A leaf of the split, later a merged region: mean colour on [0, 1] and pixels.
@@ -8,9 +9,22 @@ use super::{Scratch, SegmentParams};
 pub(super) struct Region {
     pub(super) mean: [f32; 3],
     pub(super) count: f32,
+    /// `chroma(mean)`, kept with the mean (merge and threshold read it often).
+    pub(super) chroma: [f32; 2],
+    /// `r + g + b` of the mean.
+    pub(super) lum: f32,
 }
 
 impl Region {
+    fn of_mean(mean: [f32; 3], count: f32) -> Region {
+        Region {
+            mean,
+            count,
+            chroma: chroma(mean),
+            lum: mean[0] + mean[1] + mean[2],
+        }
+    }
+
     /// From the sums of brightness, redness and `g − b` over `count` pixels.
     /// The sums are exact in `i64`; the means are taken in `f64` (exact for
     /// any sum below 2⁵³) and rounded to `f32` once.
@@ -18,14 +32,14 @@ impl Region {
         let r = (bright + red) as f64 / 3.0;
         let g_plus_b = bright as f64 - r;
         let scale = 1.0 / (255.0 * count as f64);
-        Region {
-            mean: [
+        Region::of_mean(
+            [
                 (r * scale) as f32,
                 (0.5 * (g_plus_b + gb as f64) * scale) as f32,
                 (0.5 * (g_plus_b - gb as f64) * scale) as f32,
             ],
-            count: count as f32,
-        }
+            count as f32,
+        )
     }
 }
 
@@ -47,6 +61,8 @@ pub(super) fn split(s: &mut Scratch, depth: usize, rw: usize, rh: usize, p: Segm
     }
     s.votes.clear();
     s.votes.reserve(cols * rows);
+    s.neighbours.clear();
+    s.neighbours.reserve(cols * rows);
     s.cell_root.clear();
     s.cell_root.reserve(cols * rows);
     s.stack.clear();
@@ -87,7 +103,7 @@ pub(super) fn split(s: &mut Scratch, depth: usize, rw: usize, rh: usize, p: Segm
 /// Merges adjacent regions (4-neighbouring cells with different labels) whose
 /// mean colours are closer than `distance`: union–find on running means.
 /// Leaves each region's merged root in `s.parent`.
-pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, distance: f32) {
+pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, p: &SegmentParams, noise: f32) {
     fn find(parent: &mut [u32], mut i: u32) -> u32 {
         while parent[i as usize] != i {
             parent[i as usize] = parent[parent[i as usize] as usize];
@@ -95,7 +111,9 @@ pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, distance: f32) {
         }
         i
     }
-    let d2 = distance * distance;
+    let d2 = p.merge_distance * p.merge_distance;
+    let c2 = p.merge_chroma * p.merge_chroma;
+    let n2 = noise * noise;
     let Scratch {
         labels,
         regions,
@@ -114,14 +132,21 @@ pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, distance: f32) {
         let gap = (0..3)
             .map(|k| (pa.mean[k] - pb.mean[k]).powi(2))
             .sum::<f32>();
-        if gap < d2 {
+        let spread = 1.0 / pa.count + 1.0 / pb.count;
+        // the colour distance, then the chromaticity's: a mean of n pixels
+        // with noise σ has chromaticity noise about σ √2 / (L √n)
+        let close = gap < d2 + 3.0 * n2 * spread && {
+            let (ca, cb) = (pa.chroma, pb.chroma);
+            let l = pa.lum.min(pb.lum).max(0.05);
+            let dc2 = (ca[0] - cb[0]).powi(2) + (ca[1] - cb[1]).powi(2);
+            dc2 < c2 + 2.0 * n2 / (l * l) * spread
+        };
+        if close {
             parent[rb as usize] = ra;
             let count = pa.count + pb.count;
             let (wa, wb) = (pa.count / count, pb.count / count);
-            regions[ra as usize] = Region {
-                mean: [0, 1, 2].map(|k| wa * pa.mean[k] + wb * pb.mean[k]),
-                count,
-            };
+            regions[ra as usize] =
+                Region::of_mean([0, 1, 2].map(|k| wa * pa.mean[k] + wb * pb.mean[k]), count);
         }
     };
     for y in 0..rows {

@@ -363,9 +363,16 @@ class SegmentParams(_Params):
     split_range: float
     min_block: int
     merge_distance: float
+    reference_brightness: float
+    merge_noise_z: float
+    merge_chroma: float
     metal_chroma: list[float]
     min_relative_value: float
     clip_value: float
+    saturated_value: float
+    highlight_ratio: float
+    highlight_max: float
+    highlight_min_value: float
     min_component: float
     min_instrument: float
     out: int
