@@ -24,11 +24,15 @@
 //!   off and compiles none of rapier3d, parry3d or image.
 #![warn(missing_docs)]
 
+mod compensator;
 mod dataset;
 mod error;
 mod experiment;
 mod metrics;
 
+pub use compensator::{
+    BacklashTerm, Compensator, CompensatorConfig, CompensatorOutput, Fault, Terms,
+};
 pub use dataset::{
     DatasetCard, ImageDatabase, ImagePairs, ImagePairsConfig, KinematicDataset,
     KinematicDatasetConfig, KinematicSet, KinematicSetSpec,
