@@ -1,92 +1,8 @@
 //! The hysteresis compensator of the paper (Eq. 3–5): a PID on the
 //! estimated joint angle plus a backlash term, with what a real controller
 //! needs around it (saturation, anti-windup, rate limit, faults, watchdog).
-//!
-//! ## The equations
-//!
-//! ```text
-//! θ_c = θ_d + f(e, e') + G                                  (Eq. 3)
-//! f   = K_p e + K_d e' + K_i ∫ e dt,   e = θ_d − θ̂           (Eq. 4)
-//! G_t = −f_{t−1}, updated only when the command changes direction   (Eq. 5)
-//! ```
-//!
-//! `θ_d` is the master's desired angle, `θ̂` the estimate (LBHJAE, or any
-//! estimator), `θ_c` the command sent to the plant.
-//!
-//! ## kflex's reading of Eq. 5
-//!
-//! * **The command whose direction counts is θ_d**, the master's input (the
-//!   paper's "input command"), not θ_c: θ_c carries the feedback and its
-//!   noise, and would reverse on every wiggle of the estimate. The
-//!   direction is the sign of θ_d's motion; it reverses when θ_d has come
-//!   back more than [`CompensatorConfig::direction_deadband_deg`] from its
-//!   extreme since the last reversal (0: any step back). The first motion
-//!   after a reset sets the direction without counting as a reversal.
-//! * **G is a held term, replaced at each reversal**: on the tick `t` where
-//!   the direction reverses, `G_t = −f_{t−1}`, minus the PID correction of
-//!   the tick before (P + I + D, before saturation, without G itself); on
-//!   every other tick `G_t = G_{t−1}`. It starts at 0
-//!   ([`BacklashTerm::PidCorrection`], the default).
-//! * **Its effect.** The integral runs on through the reversal, so the
-//!   total correction after it is `f_t + G_t = f_t − f_{t_r−1}`: the
-//!   correction the PID had built on the old branch is dropped at once and
-//!   the correction restarts from zero, instead of being unwound by the
-//!   integral while the joint crosses the transmission's dead band. On a
-//!   backlash of half-width `b` the rising branch needs `+b`, the falling
-//!   one `−b`: G takes the first half of that `2b` swing as a step, the PID
-//!   the rest. The loop narrows at every sheath angle (measured in
-//!   `tests/compensator.rs`, `eq5_narrows_the_loop`).
-//! * **Bounded terms.** Taken literally, G and the integral grow apart
-//!   without bound whenever the corrections at the two turning points do not
-//!   cancel (a gain loss: on kflex's plant at a 270 deg sheath G fell by
-//!   about 160 deg per period and the integral rose as much), and an
-//!   integral clamp then pins the integral and ruins tracking. kflex keeps
-//!   the same θ_c with bounded terms: at a reversal the integral's value is
-//!   moved into G, `I ← 0` and `G ← −f_{t−1} + I_{t−1} = −(P + D)_{t−1}`.
-//!   So [`Terms::i_deg`] is the integral since the last reversal, and
-//!   `f + G` is exactly Eq. 3–5's (the integral clamp, where it binds,
-//!   bounds the integral over one branch).
-//! * **Another reading**, [`BacklashTerm::TotalCorrection`]: `G_t = −(f +
-//!   G)_{t−1}`, the whole correction reversed, so the correction jumps at a
-//!   reversal to what it was at the previous turning point. Bounded too,
-//!   but on kflex's plant it tracks worse than the PID alone past a 0 deg
-//!   sheath; kept for comparison.
-//!
-//! ## Multirate: estimates need not come every tick
-//!
-//! [`Compensator::step`] runs every control tick; the estimate may be
-//! missing (`None`: a camera frame dropped or late). The PID is evaluated
-//! only when an estimate arrives, over the time since the previous one; in
-//! between, its correction `f` is held while θ_d and G are followed every
-//! tick. So a missing estimate is ordinary operation, reported through
-//! [`CompensatorOutput::estimate_age_s`]; only when the age passes
-//! [`CompensatorConfig::watchdog_timeout_s`] does it become a fault
-//! ([`Fault::Watchdog`]).
-//!
-//! ## Derivative
-//!
-//! On the error, as Eq. 4 writes it (`e' = θ_d' − θ̂'`; θ_d comes from a
-//! smooth master, so the derivative kick of a setpoint step is not a concern
-//! here), differenced between estimates and low-passed with a first-order
-//! filter of time constant [`CompensatorConfig::derivative_filter_s`]
-//! (backward Euler), which keeps the estimate's noise from being amplified
-//! by `1/dt`. The filter restarts (at zero) after a reset or a watchdog trip.
-//!
-//! ## Around the equations
-//!
-//! In order, every tick: the target `θ_d + f + G` is clamped to the joint
-//! limits, then moved from the last command by at most
-//! `rate_limit_deg_per_s · dt`; since the last command lies inside the
-//! limits, so does the result. The integral term `K_i ∫ e dt` is clamped to
-//! `±integral_limit_deg`, and (with `freeze_integral_when_saturated`) does
-//! not integrate while the output is limited and the error pushes it further
-//! out (conditional integration). A tick with a non-finite θ_d, a `dt_s`
-//! outside `(0, 1]` s or a non-finite estimate, and every tick while the
-//! watchdog has tripped, holds the last command and reports a [`Fault`].
-//! An invalid θ_d or `dt_s` leaves the compensator's state as it was; a
-//! non-finite estimate is dropped (it does not reset the watchdog) while
-//! time and θ_d's direction move on. `step`
-//! neither allocates nor panics and never returns a non-finite command.
+//! Everything about it, kflex's reading of Eq. 5 included, is on
+//! [`Compensator`].
 
 use kflex_model::{Bounds, RangeError};
 use serde::{Deserialize, Serialize};
@@ -188,7 +104,7 @@ impl CompensatorConfig {
 }
 
 /// How Eq. 5's backlash term G is updated at a reversal of θ_d (see the
-/// [module docs](self)).
+/// [`Compensator`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum BacklashTerm {
@@ -272,8 +188,95 @@ pub struct CompensatorOutput {
     pub reversed: bool,
 }
 
-/// The compensator of Eq. 3–5 (see the [module docs](self) for the
-/// reading of Eq. 5 and everything around the equations).
+/// The hysteresis compensator of Eq. 3–5: a PID on the estimated joint
+/// angle plus a backlash term, with saturation, anti-windup, a rate limit,
+/// faults and a watchdog around it.
+///
+/// # The equations
+///
+/// ```text
+/// θ_c = θ_d + f(e, e') + G                                  (Eq. 3)
+/// f   = K_p e + K_d e' + K_i ∫ e dt,   e = θ_d − θ̂           (Eq. 4)
+/// G_t = −f_{t−1}, updated only when the command changes direction   (Eq. 5)
+/// ```
+///
+/// `θ_d` is the master's desired angle, `θ̂` the estimate (LBHJAE, or any
+/// estimator), `θ_c` the command sent to the plant.
+///
+/// # kflex's reading of Eq. 5
+///
+/// * **The command whose direction counts is θ_d**, the master's input (the
+///   paper's "input command"), not θ_c: θ_c carries the feedback and its
+///   noise, and would reverse on every wiggle of the estimate. The
+///   direction is the sign of θ_d's motion; it reverses when θ_d has come
+///   back more than [`CompensatorConfig::direction_deadband_deg`] from its
+///   extreme since the last reversal (0: any step back). The first motion
+///   after a reset sets the direction without counting as a reversal.
+/// * **G is a held term, replaced at each reversal**: on the tick `t` where
+///   the direction reverses, `G_t = −f_{t−1}`, minus the PID correction of
+///   the tick before (P + I + D, before saturation, without G itself); on
+///   every other tick `G_t = G_{t−1}`. It starts at 0
+///   ([`BacklashTerm::PidCorrection`], the default).
+/// * **Its effect.** The integral runs on through the reversal, so the
+///   total correction after it is `f_t + G_t = f_t − f_{t_r−1}`: the
+///   correction the PID had built on the old branch is dropped at once and
+///   the correction restarts from zero, instead of being unwound by the
+///   integral while the joint crosses the transmission's dead band. On a
+///   backlash of half-width `b` the rising branch needs `+b`, the falling
+///   one `−b`: G takes the first half of that `2b` swing as a step, the PID
+///   the rest. The loop narrows at every sheath angle (measured in
+///   `tests/compensator.rs`, `eq5_narrows_the_loop`).
+/// * **Bounded terms.** Taken literally, G and the integral grow apart
+///   without bound whenever the corrections at the two turning points do not
+///   cancel (a gain loss: on kflex's plant at a 270 deg sheath G fell by
+///   about 160 deg per period and the integral rose as much), and an
+///   integral clamp then pins the integral and ruins tracking. kflex keeps
+///   the same θ_c with bounded terms: at a reversal the integral's value is
+///   moved into G, `I ← 0` and `G ← −f_{t−1} + I_{t−1} = −(P + D)_{t−1}`.
+///   So [`Terms::i_deg`] is the integral since the last reversal, and
+///   `f + G` is exactly Eq. 3–5's (the integral clamp, where it binds,
+///   bounds the integral over one branch).
+/// * **Another reading**, [`BacklashTerm::TotalCorrection`]: `G_t = −(f +
+///   G)_{t−1}`, the whole correction reversed, so the correction jumps at a
+///   reversal to what it was at the previous turning point. Bounded too,
+///   but on kflex's plant it tracks worse than the PID alone, even at a
+///   0 deg sheath; kept for comparison.
+///
+/// # Multirate: estimates need not come every tick
+///
+/// [`Compensator::step`] runs every control tick; the estimate may be
+/// missing (`None`: a camera frame dropped or late). The PID is evaluated
+/// only when an estimate arrives, over the time since the previous one; in
+/// between, its correction `f` is held while θ_d and G are followed every
+/// tick. So a missing estimate is ordinary operation, reported through
+/// [`CompensatorOutput::estimate_age_s`]; only when the age passes
+/// [`CompensatorConfig::watchdog_timeout_s`] does it become a fault
+/// ([`Fault::Watchdog`]).
+///
+/// # Derivative
+///
+/// On the error, as Eq. 4 writes it (`e' = θ_d' − θ̂'`; θ_d comes from a
+/// smooth master, so the derivative kick of a setpoint step is not a concern
+/// here), differenced between estimates and low-passed with a first-order
+/// filter of time constant [`CompensatorConfig::derivative_filter_s`]
+/// (backward Euler), which keeps the estimate's noise from being amplified
+/// by `1/dt`. The filter restarts (at zero) after a reset or a watchdog trip.
+///
+/// # Around the equations
+///
+/// In order, every tick: the target `θ_d + f + G` is clamped to the joint
+/// limits, then moved from the last command by at most
+/// `rate_limit_deg_per_s · dt`; since the last command lies inside the
+/// limits, so does the result. The integral term `K_i ∫ e dt` is clamped to
+/// `±integral_limit_deg`, and (with `freeze_integral_when_saturated`) does
+/// not integrate while the output is limited and the error pushes it further
+/// out (conditional integration). A tick with a non-finite θ_d, a `dt_s`
+/// outside `(0, 1]` s or a non-finite estimate, and every tick while the
+/// watchdog has tripped, holds the last command and reports a [`Fault`].
+/// An invalid θ_d or `dt_s` leaves the compensator's state as it was; a
+/// non-finite estimate is dropped (it does not reset the watchdog) while
+/// time and θ_d's direction move on. `step` neither allocates nor panics
+/// and never returns a non-finite command.
 ///
 /// # Examples
 ///
@@ -363,7 +366,7 @@ impl Compensator {
     /// θ_c of Eq. 3 with its terms. Never panics, never allocates, never
     /// returns a non-finite command; an invalid input holds the last
     /// command and is reported in [`CompensatorOutput::fault`] (see the
-    /// [module docs](self)).
+    /// [`Compensator`]).
     pub fn step(
         &mut self,
         theta_d_deg: f64,
@@ -384,7 +387,7 @@ impl Compensator {
         if reversed {
             s.terms.g_deg = match c.backlash_term {
                 BacklashTerm::Off => 0.0,
-                // −f_{t−1}, with the integral moved into G (see the module docs)
+                // −f_{t−1}, with the integral moved into G (see `Compensator`'s docs)
                 BacklashTerm::PidCorrection => {
                     let g = -(s.terms.p_deg + s.terms.d_deg);
                     s.terms.i_deg = 0.0;
@@ -470,7 +473,7 @@ impl Compensator {
 }
 
 impl State {
-    /// Follows θ_d's direction; true on a reversal (see the module docs).
+    /// Follows θ_d's direction; true on a reversal (see `Compensator`'s docs).
     fn track_direction(&mut self, theta_d_deg: f64, deadband_deg: f64) -> bool {
         let Some(extreme) = self.extreme_deg else {
             self.extreme_deg = Some(theta_d_deg);
