@@ -39,7 +39,9 @@ test-rust: venv
 	$(CARGO) test --workspace --locked $(RUST_TEST_FEATURES)
 
 # The crates a controller embeds, as it builds them: without default features
-# (no rapier3d, parry3d or image; see ARCHITECTURE.md).
+# (no rapier3d, parry3d or image; see ARCHITECTURE.md). `cargo test` builds
+# their examples too, among them kflex-control's embedded_loop (estimator and
+# compensator in a fixed-rate loop).
 EMBEDDED := -p kflex-model -p kflex-estimate -p kflex-control
 test-embedded:
 	$(CARGO) test --locked $(EMBEDDED) --no-default-features

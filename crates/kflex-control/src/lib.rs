@@ -3,8 +3,13 @@
 //! Runs the seed paper's experiments on the kflex testbed and scores them.
 //! This first version drives the *uncompensated* plant ([`OpenLoopGrid`],
 //! [`OpenLoopScenario`]) and defines the paper's metrics once ([`rmse`],
-//! [`loop_width`], [`error_peak_to_peak`]); the compensator (Eq. 3–5) and
-//! the closed loop come with the estimators.
+//! [`loop_width`], [`error_peak_to_peak`]). The compensator of Eq. 3–5
+//! ([`Compensator`]: PID plus the backlash term G, with saturation,
+//! anti-windup, a rate limit, faults and a watchdog; kflex's reading of
+//! Eq. 5 is in its module docs) is stepped once per control tick by the
+//! caller; `cargo run --release -p kflex-control --no-default-features
+//! --example embedded_loop` embeds it in a fixed-rate loop. The closed-loop
+//! experiments come next.
 //!
 //! It also makes the learned estimators' training data on the testbed: the
 //! kinematic set D^k of KBJAE ([`KinematicDatasetConfig`]: periodic signals
@@ -24,11 +29,15 @@
 //!   off and compiles none of rapier3d, parry3d or image.
 #![warn(missing_docs)]
 
+mod compensator;
 mod dataset;
 mod error;
 mod experiment;
 mod metrics;
 
+pub use compensator::{
+    BacklashTerm, Compensator, CompensatorConfig, CompensatorOutput, Fault, Terms,
+};
 pub use dataset::{
     DatasetCard, ImageDatabase, ImagePairs, ImagePairsConfig, KinematicDataset,
     KinematicDatasetConfig, KinematicSet, KinematicSetSpec,

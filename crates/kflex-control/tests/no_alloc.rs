@@ -1,7 +1,7 @@
 //! The stages of the control loop allocate nothing per tick once set up
 //! (DESIGN: one tick, no allocation): the plant, whether it accepts or
-//! rejects a command, and the segmentation once it has seen a region of the
-//! size. Later stages (estimators, filter, compensator) join this file.
+//! rejects a command, the segmentation once it has seen a region of the
+//! size, the fusion filters and the compensator. Later stages join this file.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -168,5 +168,40 @@ fn fusion_steps_allocate_nothing_accepted_or_rejected() {
         let (e, n) = allocations(|| f.step(0.01, bad));
         assert!(e.is_err());
         assert_eq!(n, 0, "a rejected step allocated");
+    }
+}
+
+#[test]
+fn compensator_steps_allocate_nothing_even_when_faulted() {
+    use kflex_control::{BacklashTerm, Compensator, CompensatorConfig};
+    for backlash_term in [
+        BacklashTerm::Off,
+        BacklashTerm::PidCorrection,
+        BacklashTerm::TotalCorrection,
+    ] {
+        let mut comp = Compensator::new(CompensatorConfig {
+            backlash_term,
+            ..CompensatorConfig::default()
+        })
+        .unwrap();
+        for k in 0..400 {
+            let theta_d = 25.0 * (f64::from(k) * 0.01).sin() + 25.0;
+            // every third tick an estimate, and now and then a bad input or a
+            // long gap that trips the watchdog
+            let theta_hat = match k {
+                _ if (100..140).contains(&k) => None,
+                _ if k % 37 == 0 => Some(f64::NAN),
+                _ => (k % 3 == 0).then_some(theta_d - 2.0),
+            };
+            let dt = if k % 53 == 0 { -1.0 } else { 0.01 };
+            let theta_d = if k % 71 == 0 { f64::NAN } else { theta_d };
+            let (out, n) = allocations(|| comp.step(theta_d, theta_hat, dt));
+            assert!(out.theta_c_deg.is_finite());
+            assert_eq!(
+                n, 0,
+                "{backlash_term:?} step {k} allocated ({:?})",
+                out.fault
+            );
+        }
     }
 }
