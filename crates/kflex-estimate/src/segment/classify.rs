@@ -130,14 +130,17 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
         votes,
         cell_root,
         neighbours,
+        roots,
         ..
     } = s;
     // 1–3: the frame's statistics
+    // the merged regions, once: every loop below runs over them, not the leaves
+    roots.clear();
+    roots.extend((0..parent.len() as u32).filter(|&i| parent[i as usize] == i));
     let mut brightness = Histogram::new();
-    for (i, r) in regions.iter().enumerate() {
-        if parent[i] as usize == i {
-            brightness.add(r.lum, 0.0, 3.0, f64::from(r.count));
-        }
+    for &i in roots.iter() {
+        let r = &regions[i as usize];
+        brightness.add(r.lum, 0.0, 3.0, f64::from(r.count));
     }
     let median_l = brightness.quantile(0.5, 0.0, 3.0);
     let min_l = p.min_relative_value * median_l;
@@ -145,9 +148,10 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     const BRIGHT: u8 = 1;
     const CLIPPED: u8 = 2;
     region_class.clear();
-    region_class.extend(regions.iter().enumerate().map(|(i, r)| {
-        let m = r.mean;
-        if parent[i] as usize != i || m[0] + m[1] + m[2] < min_l {
+    region_class.resize(regions.len(), DARK);
+    for &i in roots.iter() {
+        let m = regions[i as usize].mean;
+        region_class[i as usize] = if m[0] + m[1] + m[2] < min_l {
             DARK
         } else if m[0].min(m[1]).min(m[2]) > p.clip_value
             || m[0].max(m[1]).max(m[2]) > p.saturated_value
@@ -155,74 +159,86 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
             CLIPPED
         } else {
             BRIGHT
-        }
-    }));
-    // highlights: small regions brighter than the median and than what
-    // surrounds them (by cell edges) take their neighbours' class, like
-    // clipped ones
-    cell_root.clear();
-    cell_root.extend(labels.iter().map(|&l| parent[l as usize]));
+        };
+    }
+    // highlights: small near-white regions brighter than the median and
+    // than what surrounds them are treated as clipped (step 5)
+    const CANDIDATE: u8 = 3;
+    let mut edges_known = false;
     if p.highlight_ratio > 0.0 {
-        let lum = |r: usize| regions[r].lum;
-        let total: f32 = (0..regions.len())
-            .filter(|&i| parent[i] as usize == i)
-            .map(|i| regions[i].count)
-            .sum();
-        // a highlight's own tests first: without a candidate, no edge pass
-        let candidate = |i: usize, class: u8| {
-            let r = &regions[i];
-            class == BRIGHT
+        let total: f32 = roots.iter().map(|&i| regions[i as usize].count).sum();
+        let mut any = false;
+        for &i in roots.iter() {
+            let (r, c) = (&regions[i as usize], &mut region_class[i as usize]);
+            if *c == BRIGHT
                 && r.count < p.highlight_max * total
                 && r.lum > median_l
                 && r.mean.iter().copied().fold(f32::INFINITY, f32::min) > p.highlight_min_value
-        };
-        if (0..regions.len()).any(|i| candidate(i, region_class[i])) {
+            {
+                *c = CANDIDATE;
+                any = true;
+            }
+        }
+        if any {
+            cell_root.clear();
+            cell_root.extend(labels.iter().map(|&l| parent[l as usize]));
+            edges_known = true;
             neighbours.clear();
             neighbours.resize(regions.len(), [0.0, 0.0]);
+            let mut visit = |a: usize, b: usize| {
+                if region_class[a] == CANDIDATE {
+                    neighbours[a][0] += regions[b].lum;
+                    neighbours[a][1] += 1.0;
+                }
+            };
             for_each_edge(cell_root, cols, |a, b| {
-                neighbours[a][0] += lum(b);
-                neighbours[a][1] += 1.0;
-                neighbours[b][0] += lum(a);
-                neighbours[b][1] += 1.0;
+                visit(a, b);
+                visit(b, a);
             });
-            for i in 0..regions.len() {
-                let [sum, edges] = neighbours[i];
-                if candidate(i, region_class[i])
-                    && edges > 0.0
-                    && lum(i) > p.highlight_ratio * sum / edges
-                {
-                    region_class[i] = CLIPPED;
+            for &i in roots.iter() {
+                let i = i as usize;
+                if region_class[i] == CANDIDATE {
+                    let [sum, edges] = neighbours[i];
+                    region_class[i] =
+                        if edges > 0.0 && regions[i].lum > p.highlight_ratio * sum / edges {
+                            CLIPPED
+                        } else {
+                            BRIGHT
+                        };
                 }
             }
         }
     }
+    let bright = || {
+        roots
+            .iter()
+            .map(|&i| i as usize)
+            .filter(|&i| region_class[i] == BRIGHT)
+            .map(|i| &regions[i])
+    };
     // the tissue colour starts at the median colour of the regions whose
     // distance from the metal's colour lies between the median and the 80th
     // percentile (pixel-weighted): tissue, whether the instrument covers a
     // little or most of the region, and not the reddest tenth (red tape, dark
     // vessels); medians, not means, throughout
     let mut far = Histogram::new();
-    for (r, &c) in regions.iter().zip(region_class.iter()) {
-        if c == BRIGHT {
-            far.add(
-                dist2(r.chroma, p.metal_chroma).sqrt(),
-                0.0,
-                2.0,
-                f64::from(r.count),
-            );
-        }
+    for r in bright() {
+        far.add(
+            dist2(r.chroma, p.metal_chroma).sqrt(),
+            0.0,
+            2.0,
+            f64::from(r.count),
+        );
     }
     let (near, farthest) = (far.quantile(0.5, 0.0, 2.0), far.quantile(0.8, 0.0, 2.0));
     let (mut hx, mut hy, mut fallback) = (Histogram::new(), Histogram::new(), [0.0f32; 2]);
-    for (r, &c) in regions.iter().zip(region_class.iter()) {
-        if c == BRIGHT {
-            let ch = r.chroma;
-            fallback = ch;
-            let d = dist2(ch, p.metal_chroma).sqrt();
-            if d >= near && d <= farthest {
-                hx.add(ch[0], -1.0, 1.0, f64::from(r.count));
-                hy.add(ch[1], -1.0, 1.0, f64::from(r.count));
-            }
+    for r in bright() {
+        let ch = r.chroma;
+        fallback = ch;
+        let d = dist2(ch, p.metal_chroma).sqrt();
+        if d >= near && d <= farthest {
+            hx.add(ch[0], -1.0, 1.0, f64::from(r.count));
+            hy.add(ch[1], -1.0, 1.0, f64::from(r.count));
         }
     }
     let mut tissue = if hx.total > 0.0 {
@@ -261,10 +277,7 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     for round in 0..3 {
         let (mut sum_m, mut n_m) = ([0.0f64; 2], 0.0f64);
         let (mut hx, mut hy) = (Histogram::new(), Histogram::new());
-        for (r, &c) in regions.iter().zip(region_class.iter()) {
-            if c != BRIGHT {
-                continue;
-            }
+        for r in bright() {
             let ch = r.chroma;
             let w = f64::from(r.count);
             if dist2(ch, metal) < dist2(ch, tissue) {
@@ -287,29 +300,33 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
         }
     }
     instrument.clear();
-    instrument.extend(regions.iter().zip(region_class.iter()).map(|(r, &c)| {
-        u8::from(
-            c == BRIGHT && {
-                let ch = r.chroma;
-                dist2(ch, metal) < dist2(ch, tissue)
-            },
-        )
-    }));
-    // 5: clipped regions take their neighbours' class, by shared cell edges
-    if region_class.contains(&CLIPPED) {
+    instrument.resize(regions.len(), 0);
+    for &i in roots.iter() {
+        let i = i as usize;
+        let ch = regions[i].chroma;
+        instrument[i] = u8::from(region_class[i] == BRIGHT && dist2(ch, metal) < dist2(ch, tissue));
+    }
+    // 5: clipped regions and highlights take their neighbours' class, by
+    // shared cell edges
+    if roots.iter().any(|&i| region_class[i as usize] == CLIPPED) {
+        if !edges_known {
+            cell_root.clear();
+            cell_root.extend(labels.iter().map(|&l| parent[l as usize]));
+        }
         votes.clear();
         votes.resize(regions.len(), [0, 0]);
-        let mut vote = |ra: usize, rb: usize| {
-            if region_class[ra] == CLIPPED && region_class[rb] != CLIPPED {
-                votes[ra][usize::from(instrument[rb])] += 1;
+        let mut vote = |a: usize, b: usize| {
+            if region_class[a] == CLIPPED && region_class[b] != CLIPPED {
+                votes[a][usize::from(instrument[b])] += 1;
             }
         };
         for_each_edge(cell_root, cols, |a, b| {
             vote(a, b);
             vote(b, a);
         });
-        for (i, c) in region_class.iter().enumerate() {
-            if *c == CLIPPED {
+        for &i in roots.iter() {
+            let i = i as usize;
+            if region_class[i] == CLIPPED {
                 instrument[i] = u8::from(votes[i][1] > votes[i][0]);
             }
         }

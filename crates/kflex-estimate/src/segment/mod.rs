@@ -115,21 +115,21 @@ pub struct Segmentation {
 
 /// The sensor noise's standard deviation on the [0, 1] scale, estimated
 /// from the region's own pixels: the median absolute difference of
-/// horizontally adjacent green values over every other row (for pure noise
+/// horizontally adjacent green values in rows spread over it (for pure noise
 /// of σ, the difference has σ√2 and its median absolute value 0.954 σ);
 /// edges and texture are a minority of the pairs and barely move the median.
 fn noise_sigma(region: &Region2d) -> f32 {
+    // about 8,000 pairs, from rows spread over the region: the median is
+    // then good to a few per cent and costs a few microseconds
+    let per_row = region.width.saturating_sub(1).max(1);
+    let step = (region.height * per_row / NOISE_PAIRS).max(1);
     let mut hist = [0u32; 256];
     let mut n = 0u32;
-    for y in (0..region.height).step_by(2) {
+    for y in (0..region.height).step_by(step) {
         let row = &region.rgb[region.first + y * region.stride..][..3 * region.width];
-        for (a, b) in row
-            .iter()
-            .skip(1)
-            .step_by(3)
-            .zip(row.iter().skip(4).step_by(3))
-        {
-            hist[usize::from(a.abs_diff(*b))] += 1;
+        let green = &row[1..];
+        for pair in green.chunks_exact(3).zip(green.chunks(3).skip(1)) {
+            hist[usize::from(pair.0[0].abs_diff(pair.1[0]))] += 1;
             n += 1;
         }
     }
@@ -142,6 +142,9 @@ fn noise_sigma(region: &Region2d) -> f32 {
     }
     0.0
 }
+
+/// Pixel pairs [`noise_sigma`] reads, about.
+const NOISE_PAIRS: usize = 8192;
 
 /// The least a dark region of interest scales the split and merge
 /// thresholds by (see [`SegmentParams::reference_brightness`]).
@@ -243,6 +246,8 @@ struct Scratch {
     cell_root: Vec<u32>,
     /// Per region: summed brightness of the regions across its cell edges, and the edges.
     neighbours: Vec<[f32; 2]>,
+    /// The merged regions (roots of `parent`).
+    roots: Vec<u32>,
     cells: Vec<u8>,
     seen: Vec<bool>,
     flood: Vec<usize>,
@@ -414,5 +419,100 @@ impl Segmenter {
         }
         resample_cells(s, cols, rw, rh, &mut output.small)?;
         Ok(output)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+
+    /// A smooth gradient with Gaussian noise of `sigma` (on [0, 1]) added.
+    fn noisy(width: usize, height: usize, sigma: f64, seed: u64) -> Vec<u8> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let normal = Normal::new(0.0, sigma * 255.0).unwrap();
+        let mut rgb = Vec::with_capacity(3 * width * height);
+        for y in 0..height {
+            for x in 0..width {
+                let base = 60.0 + 120.0 * (x + y) as f64 / (width + height) as f64;
+                for _ in 0..3 {
+                    let v: f64 = base + normal.sample(&mut rng);
+                    rgb.push(v.round().clamp(0.0, 255.0) as u8);
+                }
+            }
+        }
+        rgb
+    }
+
+    #[test]
+    fn the_noise_estimate_reads_the_noise_in_the_frame() {
+        for (sigma, seed) in [(0.01, 1), (0.03, 2), (0.1, 3)] {
+            for (w, h) in [(220, 220), (640, 480), (31, 7)] {
+                let rgb = noisy(w, h, sigma, seed);
+                let region = Region2d {
+                    rgb: &rgb,
+                    first: 0,
+                    stride: 3 * w,
+                    width: w,
+                    height: h,
+                };
+                let est = f64::from(noise_sigma(&region));
+                // 8-bit rounding adds 1/√12 of a level; the median of the
+                // absolute differences comes in whole levels
+                let expected = (sigma * sigma + (1.0 / 255.0f64).powi(2) / 12.0).sqrt();
+                let tol = 0.15 * expected + 0.5 / 255.0;
+                assert!(
+                    (est - expected).abs() < tol,
+                    "σ {sigma} at {w}×{h}: estimated {est:.4}, expected {expected:.4}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_dark_frame_splits_and_merges_as_the_bright_one() {
+        // the same tiles at full light and at 0.4: a quarter metal-grey, the
+        // rest tissue-red, with a little noise; at 0.4 the colours differ by
+        // less than the split's and the merge's thresholds, which the
+        // frame's darkness scales down: both give the same mask
+        let (w, h) = (128usize, 128usize);
+        let frame = |gain: f64| -> Vec<u8> {
+            let mut rgb = noisy(w, h, 0.01, 9);
+            for y in 0..h {
+                for x in 0..w {
+                    let metal = (x / 32) % 2 == 0 && (y / 32) % 2 == 0;
+                    let c: [f64; 3] = if metal {
+                        [100.0, 101.0, 106.0]
+                    } else {
+                        [118.0, 88.0, 84.0]
+                    };
+                    let base = 60.0 + 120.0 * (x + y) as f64 / (w + h) as f64;
+                    let pixel = &mut rgb[3 * (y * w + x)..][..3];
+                    for (v, colour) in pixel.iter_mut().zip(c) {
+                        let noise = f64::from(*v) - base;
+                        *v = ((colour + noise) * gain).round().clamp(0.0, 255.0) as u8;
+                    }
+                }
+            }
+            rgb
+        };
+        let roi = Roi {
+            x0: 0,
+            y0: 0,
+            width: w as u32,
+            height: h as u32,
+        };
+        let params = SegmentParams::default();
+        let bright = segment(&frame(1.0), w as u32, h as u32, roi, &params).unwrap();
+        let dark = segment(&frame(0.4), w as u32, h as u32, roi, &params).unwrap();
+        assert!(bright.full.count() > 0);
+        let iou = dark.full.iou(&bright.full).unwrap();
+        assert!(
+            iou > 0.98,
+            "IoU {iou}, {} and {} px",
+            bright.full.count(),
+            dark.full.count()
+        );
     }
 }

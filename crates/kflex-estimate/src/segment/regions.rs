@@ -63,6 +63,8 @@ pub(super) fn split(s: &mut Scratch, depth: usize, rw: usize, rh: usize, p: Segm
     s.votes.reserve(cols * rows);
     s.neighbours.clear();
     s.neighbours.reserve(cols * rows);
+    s.roots.clear();
+    s.roots.reserve(cols * rows);
     s.cell_root.clear();
     s.cell_root.reserve(cols * rows);
     s.stack.clear();
