@@ -74,6 +74,18 @@ fn dist2(a: [f32; 2], b: [f32; 2]) -> f32 {
     (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)
 }
 
+/// Whether chromaticity `ch` lies on the metal's side of the line across
+/// the segment from `metal` to `tissue` at `share` of its length (0.5: the
+/// nearer of the two).
+fn metal_side(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], share: f32) -> bool {
+    let d = [tissue[0] - metal[0], tissue[1] - metal[1]];
+    let dd = d[0] * d[0] + d[1] * d[1];
+    if dd <= 1e-12 {
+        return false;
+    }
+    ((ch[0] - metal[0]) * d[0] + (ch[1] - metal[1]) * d[1]) < share * dd
+}
+
 /// Calls `f(a, b)` for the region roots on either side of every cell edge
 /// (right and down neighbours) where they differ.
 fn for_each_edge(cell_root: &[u32], cols: usize, mut f: impl FnMut(usize, usize)) {
@@ -115,7 +127,10 @@ fn for_each_edge(cell_root: &[u32], cols: usize, mut f: impl FnMut(usize, usize)
 ///    the median chromaticity of the regions whose distance from the metal's
 ///    `M` ([`SegmentParams::metal_chroma`]) lies between the median and the
 ///    80th percentile;
-/// 4. a region is instrument where its chromaticity is nearer `M` than `T`;
+/// 4. a region is instrument where its chromaticity is nearer `M` than `T`
+///    (for a region brighter than [`SegmentParams::bright_ratio`] times the
+///    median: where it lies within [`SegmentParams::bright_metal_share`] of
+///    the way from `M` to `T`);
 ///    then `T` becomes the pixel-weighted median of the tissue class and the
 ///    regions are sorted again (two rounds);
 /// 5. a specular region takes the class that borders most of it.
@@ -272,6 +287,15 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     // k-means) lets it drift onto pale tissue (measured: gain 1.6 on the
     // larynx fell to IoU 0.64)
     let metal = p.metal_chroma;
+    // bright tissue is pulled toward white (its sheen, its red channel
+    // clipping), so a bright region must lie nearer the metal
+    let share = |lum: f32| {
+        if lum > p.bright_ratio * median_l {
+            p.bright_metal_share
+        } else {
+            0.5
+        }
+    };
     // 4: nearest class colour, twice re-estimated
     let mut found = None;
     for round in 0..3 {
@@ -280,7 +304,7 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
         for r in bright() {
             let ch = r.chroma;
             let w = f64::from(r.count);
-            if dist2(ch, metal) < dist2(ch, tissue) {
+            if metal_side(ch, metal, tissue, share(r.lum)) {
                 sum_m = [
                     sum_m[0] + w * f64::from(ch[0]),
                     sum_m[1] + w * f64::from(ch[1]),
@@ -304,7 +328,9 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     for &i in roots.iter() {
         let i = i as usize;
         let ch = regions[i].chroma;
-        instrument[i] = u8::from(region_class[i] == BRIGHT && dist2(ch, metal) < dist2(ch, tissue));
+        instrument[i] = u8::from(
+            region_class[i] == BRIGHT && metal_side(ch, metal, tissue, share(regions[i].lum)),
+        );
     }
     // 5: clipped regions and highlights take their neighbours' class, by
     // shared cell edges

@@ -51,6 +51,16 @@ pub struct SegmentParams {
     /// around it, which moves it toward the tissue's colour; the threshold
     /// places its boundary between the two from each frame's statistics.
     pub metal_chroma: [f32; 2],
+    /// A region brighter than this many times the region of interest's
+    /// median brightness is instrument only where its chromaticity lies
+    /// within [`SegmentParams::bright_metal_share`] of the way from the
+    /// metal's to the tissue's (other regions: within half the way, the
+    /// nearer class). Bright tissue is pulled toward white by its wet sheen
+    /// and by its red channel clipping, toward the steel's near-neutral
+    /// colour; bright steel is not pulled toward the tissue's.
+    pub bright_ratio: f32,
+    /// See [`SegmentParams::bright_ratio`].
+    pub bright_metal_share: f32,
     /// Smallest brightness of an instrument region, as a share of the median
     /// brightness of the region of interest (darker is lumen or shadow).
     pub min_relative_value: f32,
@@ -91,6 +101,8 @@ impl Default for SegmentParams {
             merge_noise_z: 2.0,
             merge_chroma: 0.006,
             metal_chroma: classify::chroma([0.787, 0.800, 0.825]),
+            bright_ratio: 1.2,
+            bright_metal_share: 0.3,
             min_relative_value: 0.15,
             clip_value: 0.94,
             saturated_value: 0.97,
@@ -266,6 +278,7 @@ impl Segmenter {
     /// `[0, 3]`, `merge_distance` outside `[0, 2]`, `reference_brightness`
     /// outside `[0.01, 3]`, `merge_noise_z` outside `[0, 10]`, `merge_chroma`
     /// outside `[0, 2]`, either `metal_chroma` component outside `[-1, 1]`,
+    /// `bright_ratio` outside `[0, 100]`, `bright_metal_share`,
     /// `min_relative_value`, `clip_value` or `saturated_value` outside
     /// `[0, 1]`, `highlight_ratio` outside `[0, 100]`, `highlight_max`,
     /// `highlight_min_value`,
@@ -286,6 +299,8 @@ impl Segmenter {
         check("merge_chroma", params.merge_chroma, 0.0, 2.0)?;
         check("metal_chroma[0]", params.metal_chroma[0], -1.0, 1.0)?;
         check("metal_chroma[1]", params.metal_chroma[1], -1.0, 1.0)?;
+        check("bright_ratio", params.bright_ratio, 0.0, 100.0)?;
+        check("bright_metal_share", params.bright_metal_share, 0.0, 1.0)?;
         check("min_relative_value", params.min_relative_value, 0.0, 1.0)?;
         check("clip_value", params.clip_value, 0.0, 1.0)?;
         check("saturated_value", params.saturated_value, 0.0, 1.0)?;

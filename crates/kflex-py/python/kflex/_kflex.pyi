@@ -367,6 +367,8 @@ class SegmentParams(_Params):
     merge_noise_z: float
     merge_chroma: float
     metal_chroma: list[float]
+    bright_ratio: float
+    bright_metal_share: float
     min_relative_value: float
     clip_value: float
     saturated_value: float
