@@ -207,21 +207,20 @@ pub(crate) fn flags(name: &str, obj: &Bound<'_, PyAny>) -> Result<Vec<bool>> {
         }
         return Ok(view.iter().copied().collect());
     }
-    if let Ok(a) = obj.cast::<PyUntypedArray>() {
-        return Err(type_error(format!(
-            "{name}: expected a bool array, got dtype {} shape {:?}",
-            a.dtype(),
-            a.shape()
-        )));
-    }
-    obj.extract::<Vec<bool>>().map_err(|_| {
-        type_error(format!(
-            "{name}: expected a one-dimensional bool array, got {}",
-            obj.get_type()
-                .name()
-                .map_or_else(|_| "?".to_string(), |n| n.to_string())
-        ))
-    })
+    obj.extract::<Vec<bool>>()
+        .map_err(|_| wrong_dtype(name, "a one-dimensional bool array", obj))
+}
+
+/// A `TypeError`: `name` expected `what` and got `obj` (its dtype, for an array).
+fn wrong_dtype(name: &str, what: &str, obj: &Bound<'_, PyAny>) -> crate::error::Error {
+    let got = match obj.cast::<PyUntypedArray>() {
+        Ok(a) => format!("dtype {}", a.dtype()),
+        Err(_) => obj
+            .get_type()
+            .name()
+            .map_or_else(|_| "?".to_string(), |n| n.to_string()),
+    };
+    type_error(format!("{name}: expected {what}, got {got}"))
 }
 
 /// Rows of float32 values: a 2-D float32 or float64 array (float64 rounded
@@ -240,13 +239,7 @@ pub(crate) fn rows_f32(
     } else if let Ok(a) = obj.cast::<PyArrayDyn<f64>>() {
         a.readonly().as_array().mapv(|x| x as f32)
     } else {
-        let got = match obj.cast::<PyUntypedArray>() {
-            Ok(a) => format!("dtype {}", a.dtype()),
-            Err(_) => obj.get_type().name()?.to_string(),
-        };
-        return Err(type_error(format!(
-            "{name}: expected a float32 or float64 array, got {got}"
-        )));
+        return Err(wrong_dtype(name, "a float32 or float64 array", obj));
     };
     let (rows, cols) = match a.shape() {
         &[r, c] => (r, c),
@@ -288,13 +281,7 @@ pub(crate) fn silhouettes(
         }
         view.mapv(|v| u8::from(v != 0.0))
     } else {
-        let got = match obj.cast::<PyUntypedArray>() {
-            Ok(a) => format!("dtype {}", a.dtype()),
-            Err(_) => obj.get_type().name()?.to_string(),
-        };
-        return Err(type_error(format!(
-            "{name}: expected a bool, uint8 or float32 array, got {got}"
-        )));
+        return Err(wrong_dtype(name, "a bool, uint8 or float32 array", obj));
     };
     let single = a.ndim() == 2;
     let n = match a.shape() {

@@ -24,6 +24,13 @@
 //!   regions, data sets) let go of the interpreter (`Python::detach`); their array
 //!   inputs are copied first (`array.rs`).
 //!
+//! * Control and estimation: the compensator (`compensator.rs`), the ONNX
+//!   estimators KBJAE and the SCNN (`models.rs`), and the feature index,
+//!   band databases, IBJAE and LBHJAE (`retrieval.rs`; kflex-estimate's
+//!   features `onnx` and `index`). ONNX Runtime is loaded when the first
+//!   model is, from the onnxruntime wheel; without it, loading raises
+//!   `RuntimeError`.
+//!
 //! kflex-model is used without default features: no rapier3d, the analytic
 //! joint only (the default joint); `joint_model = "rapier"` raises
 //! `RuntimeError`.

@@ -90,7 +90,7 @@ pub struct PyFeatureIndex {
 impl PyFeatureIndex {
     /// Builds the index: `features` an (N, D) float32 or float64 array
     /// (float64 rounded to float32), `theta_deg` the N bends (deg),
-    /// `translation_mm` a number or the N translations (mm),
+    /// `translation_mm` a number or the N translations (mm; None: 0),
     /// `projection_dims` the principal axes the tree uses (8, 12 or 16).
     /// Raises `TypeError` for arrays of other shapes, `ValueError` for
     /// NaN or infinite values, no features or another `projection_dims`.
