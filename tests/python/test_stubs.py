@@ -53,6 +53,7 @@ SAMPLES = {
     "ImagePairsConfig": lambda: kflex.ImagePairsConfig(),
     "KalmanParams": lambda: kflex.KalmanParams(),
     "AdaptiveParams": lambda: kflex.AdaptiveParams(),
+    "CompensatorConfig": lambda: kflex.CompensatorConfig(),
 }
 
 

@@ -115,6 +115,22 @@ pub(crate) fn series(name: &str, obj: &Bound<'_, PyAny>) -> Result<Vec<f64>> {
     }
 }
 
+/// `n` floats: a number (repeated `n` times) or a one-dimensional array of
+/// `n` (`name` in the error).
+///
+/// # Errors
+/// As [`floats`]; `TypeError` for an array of another shape.
+pub(crate) fn broadcast(name: &str, obj: &Bound<'_, PyAny>, n: usize) -> Result<Vec<f64>> {
+    match floats(name, obj)? {
+        Floats::Scalar(x) => Ok(vec![x; n]),
+        Floats::Array(a) if a.ndim() == 1 && a.len() == n => Ok(a.iter().copied().collect()),
+        Floats::Array(a) => Err(type_error(format!(
+            "{name}: expected a number or an array of shape ({n},), got shape {:?}",
+            a.shape()
+        ))),
+    }
+}
+
 /// An RGB frame: `(rgb row-major, width, height)`.
 ///
 /// # Errors
@@ -173,4 +189,119 @@ pub(crate) fn image<'py>(
 /// A series of floats as a float64 array.
 pub(crate) fn column(py: Python<'_>, values: Vec<f64>) -> Bound<'_, PyAny> {
     values.into_pyarray(py).into_any()
+}
+
+/// A one-dimensional series of flags: a bool array or a list of bools.
+///
+/// # Errors
+/// `TypeError` naming `name` for another dtype or shape.
+pub(crate) fn flags(name: &str, obj: &Bound<'_, PyAny>) -> Result<Vec<bool>> {
+    if let Ok(a) = obj.cast::<PyArrayDyn<bool>>() {
+        let view = a.readonly();
+        let view = view.as_array();
+        if view.ndim() != 1 {
+            return Err(type_error(format!(
+                "{name}: expected a one-dimensional bool array, got shape {:?}",
+                view.shape()
+            )));
+        }
+        return Ok(view.iter().copied().collect());
+    }
+    obj.extract::<Vec<bool>>()
+        .map_err(|_| wrong_dtype(name, "a one-dimensional bool array", obj))
+}
+
+/// A `TypeError`: `name` expected `what` and got `obj` (its dtype, for an array).
+fn wrong_dtype(name: &str, what: &str, obj: &Bound<'_, PyAny>) -> crate::error::Error {
+    let got = match obj.cast::<PyUntypedArray>() {
+        Ok(a) => format!("dtype {}", a.dtype()),
+        Err(_) => obj
+            .get_type()
+            .name()
+            .map_or_else(|_| "?".to_string(), |n| n.to_string()),
+    };
+    type_error(format!("{name}: expected {what}, got {got}"))
+}
+
+/// Rows of float32 values: a 2-D float32 or float64 array (float64 rounded
+/// to float32), as `(values row-major, rows, columns)`; a 1-D array is one
+/// row when `one_row_ok`.
+///
+/// # Errors
+/// `TypeError` naming `name`, the shape and dtype expected and given.
+pub(crate) fn rows_f32(
+    name: &str,
+    obj: &Bound<'_, PyAny>,
+    one_row_ok: bool,
+) -> Result<(Vec<f32>, usize, usize)> {
+    let a: ArrayD<f32> = if let Ok(a) = obj.cast::<PyArrayDyn<f32>>() {
+        a.readonly().as_array().to_owned()
+    } else if let Ok(a) = obj.cast::<PyArrayDyn<f64>>() {
+        a.readonly().as_array().mapv(|x| x as f32)
+    } else {
+        return Err(wrong_dtype(name, "a float32 or float64 array", obj));
+    };
+    let (rows, cols) = match a.shape() {
+        &[r, c] => (r, c),
+        &[c] if one_row_ok => (1, c),
+        other => {
+            return Err(type_error(format!(
+                "{name}: expected shape (N, D){}, got shape {other:?}",
+                if one_row_ok { " or (D,)" } else { "" }
+            )));
+        }
+    };
+    Ok((a.iter().copied().collect(), rows, cols))
+}
+
+/// Silhouettes of `side × side`: an `(N, side, side)` or `(side, side)`
+/// array of bool, uint8 (nonzero: instrument) or float32 (0.0 or 1.0), as
+/// masks; the flag says whether one silhouette was given without the batch
+/// axis.
+///
+/// # Errors
+/// `TypeError` naming the shape and dtype expected and given; `ValueError`
+/// for a float32 value other than 0 and 1.
+pub(crate) fn silhouettes(
+    name: &str,
+    obj: &Bound<'_, PyAny>,
+    side: usize,
+) -> Result<(Vec<Mask>, bool)> {
+    let a: ArrayD<u8> = if let Ok(a) = obj.cast::<PyArrayDyn<bool>>() {
+        a.readonly().as_array().mapv(u8::from)
+    } else if let Ok(a) = obj.cast::<PyArrayDyn<u8>>() {
+        a.readonly().as_array().to_owned()
+    } else if let Ok(a) = obj.cast::<PyArrayDyn<f32>>() {
+        let view = a.readonly();
+        let view = view.as_array();
+        if let Some(bad) = view.iter().find(|v| **v != 0.0 && **v != 1.0) {
+            return Err(crate::error::value_error(format!(
+                "{name}: float32 silhouettes must hold 0.0 (background) or 1.0 (instrument), found {bad}"
+            )));
+        }
+        view.mapv(|v| u8::from(v != 0.0))
+    } else {
+        return Err(wrong_dtype(name, "a bool, uint8 or float32 array", obj));
+    };
+    let single = a.ndim() == 2;
+    let n = match a.shape() {
+        &[h, w] if h == side && w == side => 1,
+        &[n, h, w] if h == side && w == side => n,
+        other => {
+            return Err(type_error(format!(
+                "{name}: expected shape (N, {side}, {side}) or ({side}, {side}), got shape {other:?}"
+            )));
+        }
+    };
+    let values: Vec<u8> = a.iter().copied().collect();
+    let s = u32::try_from(side).map_err(|_| type_error(format!("{name}: side too large")))?;
+    let masks = if n == 0 {
+        Vec::new()
+    } else {
+        values
+            .chunks_exact(side * side)
+            .map(|m| Mask::from_raw(s, s, m.to_vec()))
+            .collect::<std::result::Result<Vec<_>, _>>()?
+    };
+    Ok((masks, single))
 }

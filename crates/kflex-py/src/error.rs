@@ -6,6 +6,10 @@
 //! | other bad values (non-finite input, unreachable tendon length, unknown background or tissue, a metric's bad series, a field value serde refuses) | `ValueError` |
 //! | a buffer of the wrong size, a field of the wrong type, an unknown field | `TypeError` |
 //! | no instrument in a frame | [`NoInstrumentError`](PyNoInstrumentError), a `RuntimeError` (`Segmenter.segment` returns `None` instead) |
+//! | a file that cannot be read or written: a feature-index file (`FileNotFoundError`, `PermissionError` or `OSError`, by the system's error), a model or model card (`OSError`: the Rust error does not keep the system's kind) | `OSError` and its subclasses |
+//! | a model whose card records another SHA-256, a model or database that is not what the estimator expects, a damaged or other-version index file, NaN in features, an empty index | `ValueError` |
+//! | a buffer of the wrong length for an estimator (`Length`) | `TypeError` |
+//! | ONNX Runtime missing (the message says what to install or set) or failing | `RuntimeError` |
 //! | a diverged joint, nothing in view, a feature this build lacks, a data-set worker that stopped, anything new | `RuntimeError` |
 //!
 //! [`classify`] decides the exception from the error alone (no interpreter
@@ -15,8 +19,12 @@
 use kflex_control::ControlError;
 use kflex_estimate::EstimateError;
 use kflex_model::{ModelError, RangeError};
-use pyo3::exceptions::{PyAttributeError, PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::exceptions::{
+    PyAttributeError, PyFileNotFoundError, PyOSError, PyPermissionError, PyRuntimeError,
+    PyTypeError, PyValueError,
+};
 use pyo3::prelude::*;
+use std::io::ErrorKind;
 
 pyo3::create_exception!(
     kflex,
@@ -95,6 +103,9 @@ pub(crate) enum Kind {
     Attribute,
     /// `kflex.NoInstrumentError` (a `RuntimeError`).
     NoInstrument,
+    /// `OSError`, or its subclass for the kind (`FileNotFoundError`,
+    /// `PermissionError`).
+    Os(ErrorKind),
     /// `RuntimeError`.
     Runtime,
 }
@@ -118,7 +129,15 @@ fn classify_estimate(e: &EstimateError) -> Kind {
         EstimateError::Model(m) => classify_model(m),
         EstimateError::OutOfRange(r) => Kind::Range(*r),
         EstimateError::NoInstrument { .. } => Kind::NoInstrument,
-        EstimateError::ImageSize { .. } => Kind::Type,
+        EstimateError::ImageSize { .. } | EstimateError::Length { .. } => Kind::Type,
+        EstimateError::Io { kind, .. } => Kind::Os(*kind),
+        EstimateError::ModelFile { .. } => Kind::Os(ErrorKind::Other),
+        EstimateError::ModelChecksum { .. }
+        | EstimateError::ModelMismatch { .. }
+        | EstimateError::IndexCorrupt { .. }
+        | EstimateError::IndexVersion { .. }
+        | EstimateError::NonFinite { .. }
+        | EstimateError::EmptyIndex => Kind::Value,
         _ => Kind::Runtime,
     }
 }
@@ -171,6 +190,9 @@ impl From<Error> for PyErr {
             Some(Kind::Type) => PyTypeError::new_err(msg),
             Some(Kind::Attribute) => PyAttributeError::new_err(msg),
             Some(Kind::NoInstrument) => PyNoInstrumentError::new_err(msg),
+            Some(Kind::Os(ErrorKind::NotFound)) => PyFileNotFoundError::new_err(msg),
+            Some(Kind::Os(ErrorKind::PermissionDenied)) => PyPermissionError::new_err(msg),
+            Some(Kind::Os(_)) => PyOSError::new_err(msg),
             Some(Kind::Runtime) => PyRuntimeError::new_err(msg),
         }
     }
@@ -324,6 +346,62 @@ mod tests {
             (Error::NoField("no field".into()), Kind::Attribute),
         ];
         for (e, kind) in cases {
+            assert_eq!(classify(&e), Some(kind), "{e:?}");
+        }
+    }
+
+    #[test]
+    fn estimation_errors_go_to_their_exceptions() {
+        let path = std::path::PathBuf::from("db.kfi");
+        let cases = [
+            (
+                EstimateError::Io {
+                    path: path.clone(),
+                    kind: ErrorKind::NotFound,
+                    message: "gone".into(),
+                },
+                Kind::Os(ErrorKind::NotFound),
+            ),
+            (
+                EstimateError::ModelFile {
+                    path: "m.onnx".into(),
+                    message: "gone".into(),
+                },
+                Kind::Os(ErrorKind::Other),
+            ),
+            (
+                EstimateError::ModelChecksum {
+                    path: "m.onnx".into(),
+                    card: "00".into(),
+                    file: "ff".into(),
+                },
+                Kind::Value,
+            ),
+            (
+                EstimateError::IndexCorrupt {
+                    path,
+                    reason: "checksum".into(),
+                },
+                Kind::Value,
+            ),
+            (EstimateError::EmptyIndex, Kind::Value),
+            (
+                EstimateError::Length {
+                    what: "query",
+                    expected: 256,
+                    got: 3,
+                },
+                Kind::Type,
+            ),
+            (
+                EstimateError::OnnxRuntimeMissing {
+                    searched: "nowhere".into(),
+                },
+                Kind::Runtime,
+            ),
+        ];
+        for (e, kind) in cases {
+            let e = Error::Estimate(e);
             assert_eq!(classify(&e), Some(kind), "{e:?}");
         }
     }

@@ -52,7 +52,7 @@ fn use_name(u: SensorUse) -> &'static str {
     }
 }
 
-fn estimate(py: Python<'_>, e: &Estimate) -> PyEstimate {
+pub(crate) fn estimate(py: Python<'_>, e: &Estimate) -> PyEstimate {
     let [[a, b], [c, d]] = e.covariance;
     let cov = Array2::from_shape_vec((2, 2), vec![a, b, c, d]).expect("2×2");
     PyEstimate {

@@ -24,18 +24,28 @@
 //!   regions, data sets) let go of the interpreter (`Python::detach`); their array
 //!   inputs are copied first (`array.rs`).
 //!
+//! * Control and estimation: the compensator (`compensator.rs`), the ONNX
+//!   estimators KBJAE and the SCNN (`models.rs`), and the feature index,
+//!   band databases, IBJAE and LBHJAE (`retrieval.rs`; kflex-estimate's
+//!   features `onnx` and `index`). ONNX Runtime is loaded when the first
+//!   model is, from the onnxruntime wheel; without it, loading raises
+//!   `RuntimeError`.
+//!
 //! kflex-model is used without default features: no rapier3d, the analytic
 //! joint only (the default joint); `joint_model = "rapier"` raises
 //! `RuntimeError`.
 
 mod array;
 mod camera;
+mod compensator;
 mod dataset;
 mod error;
 mod fusion;
 mod kinematics;
+mod models;
 mod plant;
 mod render;
+mod retrieval;
 mod segment;
 mod value;
 
@@ -94,5 +104,19 @@ fn _kflex(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<dataset::PyKinematicSetSpec>()?;
     m.add_class::<dataset::PyKinematicDatasetConfig>()?;
     m.add_class::<dataset::PyImagePairsConfig>()?;
+    m.add_class::<compensator::PyCompensatorConfig>()?;
+    m.add_class::<compensator::PyTerms>()?;
+    m.add_class::<compensator::PyFault>()?;
+    m.add_class::<compensator::PyCompensatorOutput>()?;
+    m.add_class::<compensator::PyCompensator>()?;
+    m.add_class::<models::PyKbjae>()?;
+    m.add_class::<models::PyScnn>()?;
+    m.add_class::<retrieval::PyNeighbour>()?;
+    m.add_class::<retrieval::PyFeatureIndex>()?;
+    m.add_class::<retrieval::PyIbjaeReading>()?;
+    m.add_class::<retrieval::PyIbjae>()?;
+    m.add_class::<retrieval::PyLbhjaeEstimate>()?;
+    m.add_class::<retrieval::PyLbhjae>()?;
+    m.add_function(wrap_pyfunction!(retrieval::build_band_database_py, m)?)?;
     Ok(())
 }

@@ -9,8 +9,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use serde_json::Value;
 
-use crate::array::{self, Floats};
-use crate::error::{Result, type_error};
+use crate::array;
+use crate::error::Result;
 use crate::value::{self, serde_class};
 
 serde_class!(
@@ -396,19 +396,7 @@ impl PyPlant {
         dt_s: f64,
     ) -> Result<Bound<'py, PyDict>> {
         let theta = array::series("theta_c_deg", theta_c_deg)?;
-        let translation = match array::floats("translation_mm", translation_mm)? {
-            Floats::Scalar(d) => vec![d; theta.len()],
-            Floats::Array(a) if a.ndim() == 1 && a.len() == theta.len() => {
-                a.iter().copied().collect()
-            }
-            Floats::Array(a) => {
-                return Err(type_error(format!(
-                    "translation_mm: expected a number or an array of shape ({},), got shape {:?}",
-                    theta.len(),
-                    a.shape()
-                )));
-            }
-        };
+        let translation = array::broadcast("translation_mm", translation_mm, theta.len())?;
         let plant = &mut self.inner;
         let states = py.detach(|| {
             theta

@@ -12,6 +12,13 @@ Training data: ``KinematicDatasetConfig().generate()`` (KBJAE's D^k) and
 ``ImagePairsConfig().generate()`` / ``.database()`` (IBJAE's D^I and its
 retrieval database) return ``(arrays, card)``; ``kflex.npz.save`` and
 ``kflex.npz.load`` keep them on disk as ``.npz`` with a JSON card beside.
+
+Control and estimation: ``Compensator`` (Eq. 3-5 with its limits, faults
+and watchdog); ``Kbjae`` and ``Scnn`` run ONNX models through ONNX Runtime,
+loaded from the ``onnxruntime`` wheel when the first model is (a
+``RuntimeError`` says what to install when it is missing);
+``FeatureIndex`` and ``build_band_database`` make IBJAE's databases;
+``Ibjae`` and ``Lbhjae`` are the whole estimators.
 """
 
 from kflex._kflex import (
@@ -23,9 +30,16 @@ from kflex._kflex import (
     BuiltInstrument,
     Camera,
     Command,
+    Compensator,
+    CompensatorConfig,
+    CompensatorOutput,
     Estimate,
+    Fault,
+    FeatureIndex,
     Frame,
     FrameParams,
+    Ibjae,
+    IbjaeReading,
     ImagePairsConfig,
     Instrument,
     InstrumentParams,
@@ -33,9 +47,13 @@ from kflex._kflex import (
     Intrinsics,
     JointParams,
     KalmanParams,
+    Kbjae,
     KinematicDatasetConfig,
     KinematicSetSpec,
+    Lbhjae,
+    LbhjaeEstimate,
     Lens,
+    Neighbour,
     NoInstrumentError,
     Occlusion,
     OpenLoopScenario,
@@ -48,6 +66,7 @@ from kflex._kflex import (
     Rasterizer,
     Roi,
     SceneRenderer,
+    Scnn,
     Seating,
     Segmentation,
     Segmenter,
@@ -55,11 +74,13 @@ from kflex._kflex import (
     SheathParams,
     Sine,
     TendonGeometry,
+    Terms,
     Trace,
     Trajectory,
     TranslationParams,
     WorkingBand,
     WorkingRegions,
+    build_band_database,
     segment,
 )
 from kflex._kflex import (
@@ -75,9 +96,16 @@ __all__ = [
     "BuiltInstrument",
     "Camera",
     "Command",
+    "Compensator",
+    "CompensatorConfig",
+    "CompensatorOutput",
     "Estimate",
+    "Fault",
+    "FeatureIndex",
     "Frame",
     "FrameParams",
+    "Ibjae",
+    "IbjaeReading",
     "ImagePairsConfig",
     "Instrument",
     "InstrumentParams",
@@ -85,9 +113,13 @@ __all__ = [
     "Intrinsics",
     "JointParams",
     "KalmanParams",
+    "Kbjae",
     "KinematicDatasetConfig",
     "KinematicSetSpec",
+    "Lbhjae",
+    "LbhjaeEstimate",
     "Lens",
+    "Neighbour",
     "NoInstrumentError",
     "Occlusion",
     "OpenLoopScenario",
@@ -100,6 +132,7 @@ __all__ = [
     "Rasterizer",
     "Roi",
     "SceneRenderer",
+    "Scnn",
     "Seating",
     "SegmentParams",
     "Segmentation",
@@ -107,10 +140,12 @@ __all__ = [
     "SheathParams",
     "Sine",
     "TendonGeometry",
+    "Terms",
     "Trace",
     "Trajectory",
     "TranslationParams",
     "WorkingBand",
     "WorkingRegions",
+    "build_band_database",
     "segment",
 ]

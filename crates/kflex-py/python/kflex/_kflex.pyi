@@ -3,6 +3,7 @@
 # tests/python/test_stubs.py checks that the fields listed here are the Rust
 # types' own and that every name the module exports is stubbed.
 
+import os
 from typing import Any, Literal, Self, TypeAlias
 
 import numpy as np
@@ -484,3 +485,181 @@ class ImagePairsConfig(_Params):
     def validate(self) -> None: ...
     def generate(self, threads: int = 0) -> tuple[Arrays, dict[str, Any]]: ...
     def database(self, threads: int = 0) -> tuple[Arrays, dict[str, Any]]: ...
+
+# ---- compensator (kflex-control's Compensator, Eq. 3-5) -------------------------
+
+class CompensatorConfig(_Params):
+    kp: float
+    ki_per_s: float
+    kd_s: float
+    derivative_filter_s: float
+    backlash_term: Literal["off", "pid_correction", "total_correction"]
+    direction_deadband_deg: float
+    theta_c_min_deg: float
+    theta_c_max_deg: float
+    integral_limit_deg: float | None
+    freeze_integral_when_saturated: bool
+    rate_limit_deg_per_s: float
+    watchdog_timeout_s: float
+    def validate(self) -> None: ...
+
+class Terms:
+    @property
+    def p_deg(self) -> float: ...
+    @property
+    def i_deg(self) -> float: ...
+    @property
+    def d_deg(self) -> float: ...
+    @property
+    def g_deg(self) -> float: ...
+    def f_deg(self) -> float: ...
+
+FaultKind: TypeAlias = Literal["non_finite_desired", "invalid_dt", "non_finite_estimate", "watchdog", "other"]
+
+class Fault:
+    kind: FaultKind
+    message: str
+    details: dict[str, float]
+
+class CompensatorOutput:
+    theta_c_deg: float
+    fault: Fault | None
+    terms: Terms
+    limited: bool
+    estimate_age_s: float
+    reversed: bool
+
+class Compensator:
+    def __init__(self, config: CompensatorConfig | None = None) -> None: ...
+    @property
+    def config(self) -> CompensatorConfig: ...
+    @property
+    def theta_c_deg(self) -> float: ...
+    def step(self, theta_d_deg: float, theta_hat_deg: float | None, dt_s: float) -> CompensatorOutput: ...
+    def run(
+        self,
+        theta_d_deg: npt.ArrayLike,
+        theta_hat_deg: npt.ArrayLike | None,
+        dt_s: float,
+        has_estimate: npt.NDArray[np.bool_] | list[bool] | None = None,
+    ) -> dict[str, npt.NDArray[Any]]: ...
+    def reset(self) -> None: ...
+
+# ---- estimators on ONNX models: KBJAE, the SCNN, the feature index, IBJAE, LBHJAE --
+
+PathIn: TypeAlias = str | os.PathLike[str]
+SilhouettesIn: TypeAlias = npt.NDArray[np.bool_] | npt.NDArray[np.uint8] | npt.NDArray[np.float32]
+Float32Array: TypeAlias = npt.NDArray[np.float32]
+
+class Kbjae:
+    @staticmethod
+    def load(path: PathIn) -> Kbjae: ...
+    @property
+    def sha256(self) -> str: ...
+    def step(self, theta_c_deg: float, dt_s: float) -> float: ...
+    def run(self, theta_c_deg: npt.ArrayLike, dt_s: float) -> FloatArray: ...
+    def predict(self, theta_deg: float, rate_deg_per_s: float) -> float: ...
+    def errors(self, theta_deg: npt.ArrayLike, rate_deg_per_s: npt.ArrayLike) -> Float32Array: ...
+    def reset(self) -> None: ...
+
+class Scnn:
+    @staticmethod
+    def load(path: PathIn, threads: int = 1) -> Scnn: ...
+    @property
+    def sha256(self) -> str: ...
+    def embed(self, silhouettes: SilhouettesIn) -> Float32Array: ...
+
+class Neighbour:
+    @property
+    def index(self) -> int: ...
+    @property
+    def theta_deg(self) -> float: ...
+    @property
+    def translation_mm(self) -> float: ...
+    @property
+    def distance_sq(self) -> float: ...
+    @property
+    def distance(self) -> float: ...
+
+FeaturesIn: TypeAlias = npt.NDArray[np.float32] | npt.NDArray[np.float64]
+
+class FeatureIndex:
+    @staticmethod
+    def build(
+        features: FeaturesIn,
+        theta_deg: npt.ArrayLike,
+        translation_mm: FloatsIn | None = None,
+        projection_dims: Literal[8, 12, 16] = 8,
+    ) -> FeatureIndex: ...
+    @staticmethod
+    def load(path: PathIn) -> FeatureIndex: ...
+    def save(self, path: PathIn) -> None: ...
+    def nearest(self, query: FeaturesIn) -> Neighbour: ...
+    def nearest_linear(self, query: FeaturesIn) -> Neighbour: ...
+    def nearest_batch(self, queries: FeaturesIn) -> dict[str, npt.NDArray[Any]]: ...
+    def __len__(self) -> int: ...
+    @property
+    def dim(self) -> int: ...
+    @property
+    def projection_dims(self) -> int: ...
+    @property
+    def features(self) -> Float32Array: ...
+    @property
+    def theta_deg(self) -> FloatArray: ...
+    @property
+    def translation_mm(self) -> FloatArray: ...
+    @property
+    def metadata(self) -> dict[str, str]: ...
+    def set_metadata(self, key: str, value: str) -> None: ...
+
+def build_band_database(
+    scnn: Scnn,
+    camera: Camera,
+    instrument: Instrument,
+    band: WorkingBand,
+    theta_step_deg: float,
+    translation_step_mm: float,
+) -> FeatureIndex: ...
+
+class IbjaeReading:
+    theta_deg: float
+    translation_mm: float
+    distance: float
+    sigma_deg: float
+    band: int
+
+class Ibjae:
+    def __init__(
+        self,
+        scnn: PathIn,
+        databases: list[FeatureIndex],
+        segment: SegmentParams | None = None,
+        threads: int = 1,
+    ) -> None: ...
+    @property
+    def bands(self) -> list[WorkingBand]: ...
+    def bands_for(self, theta_hint_deg: float | None, translation_mm: float) -> list[int]: ...
+    def read(self, rgb: npt.NDArray[np.uint8], bands: list[int]) -> IbjaeReading | None: ...
+
+class LbhjaeEstimate:
+    fused: Estimate
+    kbjae_deg: float
+    ibjae: IbjaeReading | None
+
+class Lbhjae:
+    def __init__(
+        self,
+        kbjae: PathIn,
+        scnn: PathIn,
+        databases: list[FeatureIndex],
+        fusion: KalmanParams | AdaptiveParams,
+        segment: SegmentParams | None = None,
+    ) -> None: ...
+    def step(
+        self,
+        theta_c_deg: float,
+        translation_mm: float,
+        dt_s: float,
+        rgb: npt.NDArray[np.uint8] | None = None,
+    ) -> LbhjaeEstimate: ...
+    def reset(self) -> None: ...

@@ -1,0 +1,168 @@
+//! The estimators that run ONNX models (kflex-estimate's feature `onnx`):
+//! KBJAE and IBJAE's Siamese CNN. ONNX Runtime is loaded on the first model
+//! load, from the onnxruntime wheel (kflex-estimate's `onnx` module says
+//! where it looks); without it, loading raises `RuntimeError` saying what to
+//! install or set.
+
+use std::path::PathBuf;
+
+use kflex_estimate::{EMBEDDING_DIM, Kbjae, SCNN_SIDE, Scnn};
+use numpy::IntoPyArray;
+use numpy::ndarray::Array2;
+use pyo3::prelude::*;
+
+use crate::array;
+use crate::error::Result;
+
+/// KBJAE (kflex-estimate's `Kbjae`): the MLP that predicts the joint's
+/// hysteresis error θ̃ from the command and its rate, so θ = θ_c + θ̃.
+/// `step` keeps the command's history (its rate); `predict` and `errors`
+/// keep none.
+#[pyclass(name = "Kbjae", module = "kflex")]
+pub struct PyKbjae {
+    inner: Kbjae,
+}
+
+#[pymethods]
+impl PyKbjae {
+    /// Loads KBJAE's ONNX model (input `theta_and_rate` [N, 2], output
+    /// `theta_error` [N, 1]). Raises `OSError` for a missing or unreadable
+    /// file or card, `ValueError` when the card beside it
+    /// (`NAME.card.json`) records another SHA-256 or the model's input or
+    /// output is not KBJAE's, `RuntimeError` when ONNX Runtime is missing
+    /// or refuses the file.
+    #[staticmethod]
+    fn load(py: Python<'_>, path: PathBuf) -> Result<Self> {
+        Ok(Self {
+            inner: py.detach(|| Kbjae::load(&path))?,
+        })
+    }
+
+    /// The model file's SHA-256 (lowercase hex).
+    #[getter]
+    fn sha256(&self) -> &str {
+        self.inner.sha256()
+    }
+
+    /// One tick: the command `theta_c_deg` sent this tick, `dt_s` after
+    /// the last (its rate a backward difference, 0 on the first tick).
+    /// Returns KBJAE's angle θ_c + θ̃, deg. Raises `ValueError` for a
+    /// non-finite command, `RangeError` for `dt_s` outside (0, 3600]; the
+    /// estimator is then unchanged.
+    fn step(&mut self, theta_c_deg: f64, dt_s: f64) -> Result<f64> {
+        Ok(self.inner.step(theta_c_deg, dt_s)?)
+    }
+
+    /// `step` for each command of `theta_c_deg` (a one-dimensional array,
+    /// deg), each `dt_s` after the one before; returns KBJAE's angles
+    /// (float64). On a refused command the error is raised and the
+    /// estimator keeps the ticks before it.
+    fn run<'py>(
+        &mut self,
+        py: Python<'py>,
+        theta_c_deg: &Bound<'py, PyAny>,
+        dt_s: f64,
+    ) -> Result<Bound<'py, PyAny>> {
+        let theta = array::series("theta_c_deg", theta_c_deg)?;
+        let kbjae = &mut self.inner;
+        let angles = py.detach(|| {
+            theta
+                .iter()
+                .map(|&t| kbjae.step(t, dt_s))
+                .collect::<kflex_estimate::Result<Vec<f64>>>()
+        })?;
+        Ok(array::column(py, angles))
+    }
+
+    /// KBJAE's angle θ + θ̃(θ, θ') for one command and its rate, deg (no
+    /// history kept). Raises `ValueError` for a non-finite input.
+    fn predict(&mut self, theta_deg: f64, rate_deg_per_s: f64) -> Result<f64> {
+        Ok(self.inner.predict(theta_deg, rate_deg_per_s)?)
+    }
+
+    /// The predicted errors θ̃ (not the angles) for many commands at once,
+    /// in one model call: `theta_deg` and `rate_deg_per_s` one-dimensional
+    /// arrays of one length (deg, deg/s; rounded to float32, the model's
+    /// type). Returns a float32 array. Raises `TypeError` for arrays of
+    /// other shapes or lengths, `ValueError` for a non-finite input.
+    fn errors<'py>(
+        &mut self,
+        py: Python<'py>,
+        theta_deg: &Bound<'py, PyAny>,
+        rate_deg_per_s: &Bound<'py, PyAny>,
+    ) -> Result<Bound<'py, PyAny>> {
+        let f32s = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect::<Vec<f32>>();
+        let theta = f32s(array::series("theta_deg", theta_deg)?);
+        let rate = f32s(array::series("rate_deg_per_s", rate_deg_per_s)?);
+        let kbjae = &mut self.inner;
+        let out = py.detach(|| kbjae.errors(&theta, &rate))?;
+        Ok(out.into_pyarray(py).into_any())
+    }
+
+    /// Forgets the command history (the next `step`'s rate is 0).
+    fn reset(&mut self) {
+        self.inner.reset();
+    }
+
+    fn __repr__(&self) -> String {
+        format!("Kbjae(sha256={:?})", self.inner.sha256())
+    }
+}
+
+/// One branch of IBJAE's Siamese CNN (kflex-estimate's `Scnn`): a 48×48
+/// silhouette to a 256-dimensional embedding.
+#[pyclass(name = "Scnn", module = "kflex")]
+pub struct PyScnn {
+    pub(crate) inner: Scnn,
+}
+
+#[pymethods]
+impl PyScnn {
+    /// Loads the SCNN's ONNX model (input `silhouette` [N, 1, 48, 48],
+    /// output `embedding` [N, 256]) with `threads` intra-op threads.
+    /// Raises as `Kbjae.load`.
+    #[staticmethod]
+    #[pyo3(signature = (path, threads = 1))]
+    fn load(py: Python<'_>, path: PathBuf, threads: usize) -> Result<Self> {
+        Ok(Self {
+            inner: py.detach(|| Scnn::load(&path, threads))?,
+        })
+    }
+
+    /// The model file's SHA-256 (a band database records it).
+    #[getter]
+    fn sha256(&self) -> &str {
+        self.inner.sha256()
+    }
+
+    /// Embeds silhouettes in one model call: an (N, 48, 48) array, or one
+    /// (48, 48) silhouette, of bool, uint8 (nonzero: instrument) or float32
+    /// (0.0 or 1.0). Returns float32 embeddings, (N, 256) or (256,). Raises
+    /// `TypeError` for another shape or dtype, `ValueError` for a float32
+    /// value other than 0 and 1.
+    fn embed<'py>(
+        &mut self,
+        py: Python<'py>,
+        silhouettes: &Bound<'py, PyAny>,
+    ) -> Result<Bound<'py, PyAny>> {
+        let (masks, single) = array::silhouettes("silhouettes", silhouettes, SCNN_SIDE as usize)?;
+        let scnn = &mut self.inner;
+        let values = if masks.is_empty() {
+            Vec::new()
+        } else {
+            py.detach(|| scnn.embed_batch(&masks))?
+        };
+        Ok(if single {
+            values.into_pyarray(py).into_any()
+        } else {
+            Array2::from_shape_vec((masks.len(), EMBEDDING_DIM), values)
+                .expect("the SCNN gives 256 values per silhouette")
+                .into_pyarray(py)
+                .into_any()
+        })
+    }
+
+    fn __repr__(&self) -> String {
+        format!("Scnn(sha256={:?})", self.inner.sha256())
+    }
+}
