@@ -149,6 +149,20 @@ def test_without_onnx_runtime_loading_raises_a_runtime_error_that_says_what_to_d
         assert hint in done.stdout
 
 
+def test_an_environment_that_is_not_activated_finds_its_own_runtime(kbjae_path: Path, tmp_path: Path) -> None:
+    # no ORT_DYLIB_PATH, no VIRTUAL_ENV, no python3 with onnxruntime on PATH,
+    # no .venv above the working directory: only the interpreter running
+    # kflex knows where its onnxruntime is
+    script = f"import kflex\nkflex.Kbjae.load({str(kbjae_path)!r})\nprint('loaded')\n"
+    env = {k: v for k, v in os.environ.items() if k not in ("ORT_DYLIB_PATH", "VIRTUAL_ENV")}
+    env["PATH"] = str(tmp_path)
+    done = subprocess.run(
+        [sys.executable, "-c", script], env=env, cwd=tmp_path, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "loaded"
+
+
 # ---- SCNN ----------------------------------------------------------------------
 
 

@@ -134,8 +134,10 @@ impl BandDatabase {
     /// [`build_band_database`] writes them, or a loaded file has them).
     ///
     /// # Errors
-    /// [`EstimateError::ModelFile`] naming the metadata key that is missing or
-    /// unreadable.
+    /// [`EstimateError::ModelFile`] naming the metadata key that is missing,
+    /// unreadable or out of its range (a region of whole, non-negative pixels;
+    /// ranges whose lower end is not above their upper; positive grid steps
+    /// and distance per degree).
     pub fn from_index(index: FeatureIndex) -> Result<Self> {
         let numbers = |key: &str, n: usize| -> Result<Vec<f64>> {
             let bad = || EstimateError::ModelFile {
@@ -154,10 +156,38 @@ impl BandDatabase {
                 Err(bad())
             }
         };
+        let invalid = |key: &str, message: &str| EstimateError::ModelFile {
+            path: format!("feature database metadata {key:?}"),
+            message: message.into(),
+        };
         let roi = numbers(keys::ROI, 4)?;
+        // pixels: whole, not negative, a region of at least one pixel
+        if roi
+            .iter()
+            .any(|&v| v < 0.0 || v.fract() != 0.0 || v > f64::from(u32::MAX))
+            || roi[2] < 1.0
+            || roi[3] < 1.0
+        {
+            return Err(invalid(
+                keys::ROI,
+                "not a region of whole pixels (x0, y0 ≥ 0; width, height ≥ 1)",
+            ));
+        }
         let band = numbers(keys::BAND, 4)?;
+        if band[0] > band[1] || band[2] > band[3] {
+            return Err(invalid(
+                keys::BAND,
+                "a bend or translation range whose lower end is above its upper",
+            ));
+        }
         let grid = numbers(keys::GRID, 2)?;
+        if grid.iter().any(|&v| v <= 0.0) {
+            return Err(invalid(keys::GRID, "a grid step that is not positive"));
+        }
         let per_deg = numbers(keys::DISTANCE_PER_DEG, 1)?[0];
+        if per_deg <= 0.0 {
+            return Err(invalid(keys::DISTANCE_PER_DEG, "not positive"));
+        }
         Ok(Self {
             band: WorkingBand {
                 poses: kflex_model::PoseRange {
@@ -359,12 +389,15 @@ impl Ibjae {
     /// instrument in any of their regions: never a made-up angle.
     ///
     /// # Errors
-    /// [`EstimateError::ImageSize`] or a range error for a region outside
-    /// the frame; errors of the SCNN and the index.
+    /// [`EstimateError::OutOfRange`] naming `band` for an index past the
+    /// databases; [`EstimateError::ImageSize`] or a range error for a region
+    /// outside the frame; errors of the SCNN and the index.
     pub fn read(&mut self, frame: &RgbView, bands: &[usize]) -> Result<Option<IbjaeReading>> {
         let mut best: Option<IbjaeReading> = None;
         for &i in bands {
             let Some(db) = self.bands.get(i) else {
+                let last = self.bands.len().saturating_sub(1);
+                kflex_model::Bounds::closed(0.0, last as f64).check("band", i as f64)?;
                 continue;
             };
             let roi = db.band.roi;

@@ -7,10 +7,14 @@
 //! (`requirements.txt`, installed into `.venv` by `make venv`). It is looked
 //! for, in order, at
 //! 1. `ORT_DYLIB_PATH` (a file path);
-//! 2. the project's virtual environment: `.venv/lib/python3*/site-packages/
+//! 2. the `onnxruntime` package the embedding program names with
+//!    [`prefer_onnxruntime_package`] (the Python module names its own
+//!    interpreter's, so `import kflex` finds the runtime of the environment
+//!    it runs in, activated or not);
+//! 3. the project's virtual environment: `.venv/lib/python3*/site-packages/
 //!    onnxruntime/capi/libonnxruntime.so*` in the current directory or any
 //!    directory above it, then above the running executable;
-//! 3. the active Python: `$VIRTUAL_ENV`, then `python3`'s own `onnxruntime`.
+//! 4. the active Python: `$VIRTUAL_ENV`, then `python3`'s own `onnxruntime`.
 //!
 //! When none has it, the error says what to install or set.
 
@@ -27,6 +31,17 @@ use crate::error::{EstimateError, Result};
 
 /// The ONNX Runtime version kflex is built and tested against (the pinned wheel).
 pub const ONNXRUNTIME_VERSION: &str = "1.31.1";
+
+/// The `onnxruntime` package directory named by [`prefer_onnxruntime_package`].
+static PREFERRED_PACKAGE: OnceLock<PathBuf> = OnceLock::new();
+
+/// Names the `onnxruntime` Python package directory (the one holding
+/// `capi/`) to look in after `ORT_DYLIB_PATH` and before the virtual
+/// environments. The first call wins; it matters only before the first
+/// model is loaded. Returns whether this call set it.
+pub fn prefer_onnxruntime_package(dir: &Path) -> bool {
+    PREFERRED_PACKAGE.set(dir.to_path_buf()).is_ok()
+}
 
 /// Where the ONNX Runtime library is: see the module docs for the order.
 ///
@@ -45,6 +60,12 @@ pub fn onnxruntime_library() -> Result<PathBuf> {
         });
     }
     searched.push("ORT_DYLIB_PATH (unset)".to_string());
+    if let Some(package) = PREFERRED_PACKAGE.get() {
+        if let Some(lib) = in_capi(&package.join("capi")) {
+            return Ok(lib);
+        }
+        searched.push(format!("the onnxruntime package {}", package.display()));
+    }
     let mut starts: Vec<PathBuf> = Vec::new();
     if let Ok(dir) = std::env::current_dir() {
         starts.push(dir);

@@ -116,6 +116,49 @@ fn no_instrument_is_no_reading_never_a_made_up_angle() {
 }
 
 #[test]
+fn a_band_past_the_databases_is_an_error_not_no_reading() {
+    let camera = Camera::default();
+    let mut ibjae = ibjae(&camera);
+    let k = camera.intrinsics;
+    let rgb = vec![128u8; (3 * k.width * k.height) as usize];
+    let view = RgbView::packed(&rgb, k.width, k.height).unwrap();
+    let e = ibjae.read(&view, &[0, 7]).unwrap_err();
+    assert!(
+        matches!(e, EstimateError::OutOfRange(ref r) if r.name == "band"),
+        "{e}"
+    );
+}
+
+#[test]
+fn band_metadata_out_of_range_is_refused_naming_the_key() {
+    let camera = Camera::default();
+    let mut scnn = Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
+    let db = build_band_database(
+        &mut scnn,
+        &camera,
+        &Instrument::kflex(),
+        &paper_band(&camera),
+        10.0,
+        1.0,
+    )
+    .unwrap();
+    let bytes = db.index.to_bytes();
+    for (key, value) in [
+        ("roi", "-1,0,10,10"),
+        ("roi", "0.5,0,10,10"),
+        ("roi", "0,0,0,10"),
+        ("band", "50,0,10,10"),
+        ("grid", "0,1"),
+        ("distance_per_deg", "-2"),
+    ] {
+        let mut index = kflex_estimate::FeatureIndex::from_bytes(&bytes).unwrap();
+        index.set_metadata(key, value);
+        let e = kflex_estimate::BandDatabase::from_index(index).unwrap_err();
+        assert!(e.to_string().contains(key), "{key}={value}: {e}");
+    }
+}
+
+#[test]
 fn a_database_from_another_scnn_is_refused() {
     let camera = Camera::default();
     let mut scnn = Scnn::load(&data("scnn_test.onnx"), 1).unwrap();

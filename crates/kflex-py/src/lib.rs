@@ -118,5 +118,6 @@ fn _kflex(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<retrieval::PyLbhjaeEstimate>()?;
     m.add_class::<retrieval::PyLbhjae>()?;
     m.add_function(wrap_pyfunction!(retrieval::build_band_database_py, m)?)?;
+    m.add_function(wrap_pyfunction!(models::prefer_onnxruntime_package, m)?)?;
     Ok(())
 }

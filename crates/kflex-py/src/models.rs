@@ -166,3 +166,11 @@ impl PyScnn {
         format!("Scnn(sha256={:?})", self.inner.sha256())
     }
 }
+
+/// Names the `onnxruntime` package directory of the interpreter running
+/// `kflex` as the place to find ONNX Runtime after `ORT_DYLIB_PATH` (called
+/// once by `kflex/__init__.py`). Returns whether this call set it.
+#[pyfunction(name = "_prefer_onnxruntime_package")]
+pub fn prefer_onnxruntime_package(dir: PathBuf) -> bool {
+    kflex_estimate::onnx::prefer_onnxruntime_package(&dir)
+}

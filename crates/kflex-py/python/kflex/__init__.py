@@ -87,6 +87,23 @@ from kflex._kflex import (
     __version__ as __version__,
 )
 
+
+def _name_onnxruntime() -> None:
+    # ONNX Runtime comes from the onnxruntime wheel; name this interpreter's
+    # (found without importing it) so that an environment that is not
+    # activated still finds its own. ORT_DYLIB_PATH, when set, still wins.
+    import importlib.util
+
+    from kflex._kflex import _prefer_onnxruntime_package
+
+    spec = importlib.util.find_spec("onnxruntime")
+    for location in (spec.submodule_search_locations or []) if spec else []:
+        _prefer_onnxruntime_package(location)
+        break
+
+
+_name_onnxruntime()
+
 __all__ = [
     "AdaptiveKalman",
     "AdaptiveParams",
