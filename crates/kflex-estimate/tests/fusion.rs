@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::fusion_scenario::{Scenario, table_row};
+use common::fusion_scenario::{Scenario, fused, rmse, simulate, table_row};
 use kflex_estimate::{
     AdaptiveKalman, AdaptiveParams, EstimateError, FilterRate, Fusion, KalmanParams, Measurements,
     PaperKalman, SensorUse,
@@ -68,6 +68,24 @@ fn under_distal_occlusion_at_a_straight_sheath_the_camera_needs_its_confidence()
     let given = case(0.0, true, true);
     assert!(given[ADAPTIVE] < given[AS_RUN], "{given:?}");
     assert!(given[ADAPTIVE] < given[IBJAE] / 4.0, "{given:?}");
+    // frames that report themselves too uncertain are rejected: within
+    // 0.5 deg of the better sensor (measured 1.60 against KBJAE's 1.27; the
+    // goal of best of the three is not met)
+    assert!(given[ADAPTIVE] < given[KBJAE] + 0.5, "{given:?}");
+    let mut keep_all = kflex_estimate::AdaptiveParams::default();
+    keep_all.max_ibjae_sigma_deg = 1e9;
+    let run = simulate(Scenario {
+        sheath_deg: 0.0,
+        distal_occlusion: true,
+        confidence: true,
+        seed: 1,
+    });
+    let mut all = kflex_estimate::AdaptiveKalman::new(keep_all).unwrap();
+    let mut rejecting = kflex_estimate::AdaptiveKalman::new(Default::default()).unwrap();
+    assert!(
+        rmse(&run, &fused(&run, &mut rejecting)) < rmse(&run, &fused(&run, &mut all)),
+        "rejecting unsure frames must help"
+    );
     let blind = case(0.0, true, false);
     assert!(
         blind[ADAPTIVE] < 13.0,

@@ -37,6 +37,13 @@ pub struct AdaptiveParams {
     /// (one degree of freedom: 6.63 passes 99 % of consistent measurements,
     /// 9 passes 99.7 %).
     pub gate: f64,
+    /// An IBJAE measurement that reports its own uncertainty above this, deg,
+    /// is rejected like a gated one (a hidden tip matches no silhouette
+    /// well): its retrieval says it is no measurement of the joint. The
+    /// default is about three times the camera's noise when it sees the
+    /// whole instrument (2.5 deg in the synthetic scenario and the paper's
+    /// Table V).
+    pub max_ibjae_sigma_deg: f64,
 }
 
 impl Default for AdaptiveParams {
@@ -49,6 +56,7 @@ impl Default for AdaptiveParams {
             min_sigma_z_deg: 0.3,
             noise_time_s: 3.0,
             gate: 9.0,
+            max_ibjae_sigma_deg: 8.0,
         }
     }
 }
@@ -61,7 +69,7 @@ impl AdaptiveParams {
     /// its range: `accel_psd_deg2_per_s3` in `(0, 1e9]`, `bias_sigma_deg` in
     /// `[0, 1e3]`, `bias_time_s` in `(0, 1e6]`, `initial_sigma_z_deg` in
     /// `(0, 1e3]`, `min_sigma_z_deg` in `(0, 1e3]`, `noise_time_s` in
-    /// `(0, 1e6]`, `gate` in `(0, 1e6]`.
+    /// `(0, 1e6]`, `gate` in `(0, 1e6]`, `max_ibjae_sigma_deg` in `(0, 1e9]`.
     pub fn validate(&self) -> Result<()> {
         Bounds::open_closed(0.0, 1e9).check("accel_psd_deg2_per_s3", self.accel_psd_deg2_per_s3)?;
         Bounds::closed(0.0, 1e3).check("bias_sigma_deg", self.bias_sigma_deg)?;
@@ -72,6 +80,7 @@ impl AdaptiveParams {
         Bounds::open_closed(0.0, 1e3).check("min_sigma_z_deg", self.min_sigma_z_deg)?;
         Bounds::open_closed(0.0, 1e6).check("noise_time_s", self.noise_time_s)?;
         Bounds::open_closed(0.0, 1e6).check("gate", self.gate)?;
+        Bounds::open_closed(0.0, 1e9).check("max_ibjae_sigma_deg", self.max_ibjae_sigma_deg)?;
         Ok(())
     }
 }
@@ -101,7 +110,8 @@ const INITIAL_RATE_SIGMA: f64 = 100.0;
 /// averaged with time constant `noise_time_s`. A sensor whose errors grow (a sheath bent unlike
 /// KBJAE's training, a camera that loses the tip) loses weight.
 ///
-/// **Gate.** An IBJAE measurement with `ν²/S > gate` is rejected
+/// **Gate.** An IBJAE measurement with `ν²/S > gate`, or one whose own
+/// uncertainty is above `max_ibjae_sigma_deg`, is rejected
 /// ([`SensorUse::Gated`]): under distal occlusion the nearest silhouette can
 /// be far from the truth. Its innovation still enters the noise average,
 /// capped at `gate · S`, so a camera that stays inconsistent is trusted less
@@ -236,6 +246,7 @@ impl AdaptiveKalman {
         let nu = z - (h * self.x)[0];
         let ph = self.p * h.transpose();
         let hph = (h * ph)[0];
+
         // a measurement with its own uncertainty: that variance, times how
         // far the sensor's uncertainties have proved too small or too large
         let floor = self.params.min_sigma_z_deg * self.params.min_sigma_z_deg;
@@ -258,7 +269,11 @@ impl AdaptiveKalman {
             }
             None => self.r[i] += alpha * (sample - self.r[i]),
         }
-        if gated && nis > self.params.gate {
+        // a measurement that reports itself too uncertain is no measurement
+        // of the joint (it still tells how its uncertainties compare with
+        // its errors, above)
+        let unsure = sigma.is_some_and(|sg| sg > self.params.max_ibjae_sigma_deg);
+        if gated && (nis > self.params.gate || unsure) {
             return SensorUse::Gated { nis };
         }
         let k = ph / s;

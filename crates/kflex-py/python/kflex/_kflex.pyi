@@ -408,6 +408,7 @@ class AdaptiveParams(_Params):
     min_sigma_z_deg: float
     noise_time_s: float
     gate: float
+    max_ibjae_sigma_deg: float
 
 class Estimate:
     theta_hat_deg: float
