@@ -22,7 +22,7 @@ pub use background::{Background, Tissue};
 use sensor::{
     Normals, Response, Sensor, gaussian_blur, linear_from_encoded, normal_table, response_table,
 };
-use shading::{Surroundings, surface_colour, tape_band, under_tape};
+use shading::{Look, Surroundings, surface_look, tape_band, under_tape};
 
 /// What a cached background depends on: kind, tissue colour, seed, width, height.
 type BackgroundKey = (Background, Tissue, u64, u32, u32);
@@ -202,6 +202,10 @@ pub struct SceneRenderer {
     patches: Vec<(u32, [f32; 3])>,
     /// The encoded background values a frame's patches covered, to put back.
     undo: Vec<[f32; 3]>,
+    /// The looks of a frame's patches, in order: one a pixel, four an edge's.
+    looks: Vec<Look>,
+    /// Per patch: whether it is an edge's (four looks).
+    edges: Vec<bool>,
     /// One row of encoded values.
     row: Vec<f32>,
     /// The camera's response (`sensor::response_table`), once made.
@@ -537,6 +541,8 @@ impl SceneRenderer {
     /// instrument shaded, edges anti-aliased over the background).
     fn shade(&mut self, camera: &Camera, region: Roi, work: Roi, band: Option<(f32, f32)>) {
         self.patches.clear();
+        self.looks.clear();
+        self.edges.clear();
         let k = camera.intrinsics;
         let (w, h) = (k.width as usize, k.height as usize);
         let Some((_, background, mean)) = self.cache.as_ref() else {
@@ -553,12 +559,15 @@ impl SceneRenderer {
             hits,
             inside,
             patches,
+            looks,
+            edges,
             ..
         } = self;
         let work_w = work.width as usize;
         let centre = |x: usize, y: usize| -> Option<u32> {
             inside[(y - work.y0 as usize) * work_w + (x - work.x0 as usize)].checked_sub(1)
         };
+        // the looks first (the patches' colours wait for the reflected pixels)
         raster.tiles(
             camera,
             region,
@@ -581,28 +590,42 @@ impl SceneRenderer {
                         if edge {
                             let o = 3 * (y * w + x);
                             let bg = [background[o], background[o + 1], background[o + 2]];
-                            let mut sum = [0.0f32; 3];
                             for (dx, dy) in EDGE_SAMPLES {
                                 let (u, v) = (x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
-                                let c = match scene.first_hit(camera, candidates, u, v) {
+                                looks.push(match scene.first_hit(camera, candidates, u, v) {
                                     (Some(hit), d) => {
-                                        surface_colour(&scene.bodies, &hit, &d, band, &env)
+                                        surface_look(&scene.bodies, &hit, &d, band, &env)
                                     }
-                                    (None, _) => bg,
-                                };
-                                (0..3).for_each(|ch| sum[ch] += 0.25 * c[ch]);
+                                    (None, _) => Look::Done(bg),
+                                });
                             }
-                            patches.push((p, sum));
+                            patches.push((p, [0.0; 3]));
+                            edges.push(true);
                         } else if let Some(i) = here {
                             let hit = &hits[i as usize];
                             let d = optics.ray(x as u32, y as u32);
-                            let c = surface_colour(&scene.bodies, hit, &d, band, &env);
-                            patches.push((p, c));
+                            looks.push(surface_look(&scene.bodies, hit, &d, band, &env));
+                            patches.push((p, [0.0; 3]));
+                            edges.push(false);
                         }
                     }
                 }
             },
         );
+        // then the colours: an edge's the mean of its four rays'
+        let mut next = looks.iter();
+        for ((_, c), &edge) in patches.iter_mut().zip(edges.iter()) {
+            if edge {
+                let mut sum = [0.0f32; 3];
+                for look in next.by_ref().take(4) {
+                    let c = look.colour(&env);
+                    (0..3).for_each(|ch| sum[ch] += 0.25 * c[ch]);
+                }
+                *c = sum;
+            } else if let Some(look) = next.next() {
+                *c = look.colour(&env);
+            }
+        }
     }
 }
 
