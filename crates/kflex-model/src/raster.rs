@@ -299,30 +299,64 @@ impl Rasterizer {
 impl Rasterizer {
     /// Calls `f(x, y, hit)` for every pixel of `window` whose centre ray
     /// meets the prepared shape, with where it meets it first.
+    ///
+    /// A fine tile's rays are cast body by body (each ray as
+    /// [`Scene::first_hit_along`] casts it, to the same hit): the rays of a
+    /// tile are independent, so the processor overlaps their divisions and
+    /// square roots.
     pub(crate) fn centre_hits(
         &mut self,
         camera: &Camera,
         window: Roi,
         mut f: impl FnMut(u32, u32, SurfaceHit),
     ) {
+        // per ray of the tile: direction, pixel position, and the nearest
+        // hit so far (distance, axial parameter, surface, body)
+        let mut rays = [(Vector3::zeros(), 0.0, 0.0); TILE_RAYS];
+        let mut best = [(f64::INFINITY, 0.0, Surface::Side, 0usize); TILE_RAYS];
         self.tiles(
             camera,
             window,
             |scene, optics, [x0, y0, x1, y1], candidates| {
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
-                        if let Some(hit) =
-                            scene.first_hit_along(candidates, u, v, &optics.ray(x, y))
-                        {
-                            f(x, y, hit);
+                let n = ((x1 - x0) * (y1 - y0)) as usize;
+                let (rays, best) = (&mut rays[..n], &mut best[..n]);
+                let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y)));
+                for ((ray, b), (x, y)) in rays.iter_mut().zip(best.iter_mut()).zip(pixels) {
+                    *ray = (optics.ray(x, y), f64::from(x) + 0.5, f64::from(y) + 0.5);
+                    *b = (f64::INFINITY, 0.0, Surface::Side, 0);
+                }
+                for &i in candidates {
+                    let i = usize::from(i);
+                    let Some(body) = scene.bodies.get(i) else {
+                        continue;
+                    };
+                    for ((d, pu, pv), b) in rays.iter().zip(best.iter_mut()) {
+                        // candidates come nearest first: a ray whose hit is
+                        // nearer than the body can be is done with it
+                        if b.0 < body.near || !body.box_holds(*pu, *pv) {
+                            continue;
                         }
+                        if let Some((t, u, s)) = body.hit(d)
+                            && t < b.0
+                        {
+                            *b = (t, u, s, i);
+                        }
+                    }
+                }
+                let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y)));
+                for (((d, _, _), &(t, u, s, i)), (x, y)) in rays.iter().zip(best.iter()).zip(pixels)
+                {
+                    if t < f64::INFINITY {
+                        f(x, y, scene.surface_hit(d, t, u, s, i));
                     }
                 }
             },
         );
     }
 }
+
+/// Rays in a fine tile.
+const TILE_RAYS: usize = (FINE * FINE) as usize;
 
 /// The unit ray through pixel position `(u, v)`, camera frame.
 #[inline]
@@ -513,7 +547,7 @@ impl CameraBody {
 
     /// The first hit of the ray from the origin along unit `d`: its
     /// distance, the axial parameter in `[0, 1]` and the surface.
-    #[inline]
+    #[inline(always)]
     fn hit(&self, d: &Vector3<f64>) -> Option<(f64, f64, Surface)> {
         let mut best: Option<(f64, f64, Surface)> = None;
         let mut keep = |t: f64, u: f64, s: Surface| {
@@ -673,16 +707,21 @@ impl Scene {
                 best = Some((t, u, s, i));
             }
         }
-        best.map(|(t, u, s, i)| {
-            let body = &self.bodies[i];
-            SurfaceHit {
-                t,
-                body: i,
-                normal: body.normal(d, t, u, s),
-                arc_mm: body.arc[0] + u * (body.arc[1] - body.arc[0]),
-                on_end: s != Surface::Side,
-            }
-        })
+        best.map(|(t, u, s, i)| self.surface_hit(d, t, u, s, i))
+    }
+
+    /// The hit of the ray along unit `d` on body `i` at distance `t`, axial
+    /// parameter `u`, surface `s`.
+    #[inline]
+    fn surface_hit(&self, d: &Vector3<f64>, t: f64, u: f64, s: Surface, i: usize) -> SurfaceHit {
+        let body = &self.bodies[i];
+        SurfaceHit {
+            t,
+            body: i,
+            normal: body.normal(d, t, u, s),
+            arc_mm: body.arc[0] + u * (body.arc[1] - body.arc[0]),
+            on_end: s != Surface::Side,
+        }
     }
 }
 
