@@ -178,11 +178,11 @@ pub struct Frame {
 pub struct SceneRenderer {
     raster: Rasterizer,
     cache: Option<(BackgroundKey, Vec<f32>, [f32; 3])>,
-    /// Centre-ray hits of the last frame's work region, each with its pixel's
-    /// index in that region, and per pixel of the region the index of its
-    /// hit plus one (0: none).
+    /// Centre-ray hits of the last frame's work region, each with its pixel
+    /// (full image), and per pixel of the region the index of its hit plus
+    /// one (0: none).
     hits: Vec<SurfaceHit>,
-    hit_pixels: Vec<u32>,
+    hit_pixels: Vec<[u32; 2]>,
     inside: Vec<u32>,
     /// The region `inside` covers (its entries are zero but at `hit_pixels`).
     inside_region: Option<Roi>,
@@ -429,13 +429,14 @@ impl SceneRenderer {
         // the masks: each centre hit inside the window, under the tape or not
         let mut instrument = vec![0u8; ww * wh];
         let mut occluder = vec![0u8; ww * wh];
-        let work_w = work.width as usize;
-        for (hit, &p) in self.hits.iter().zip(&self.hit_pixels) {
-            let (x, y) = (p as usize % work_w, p as usize / work_w);
-            let (x, y) = (x + work.x0 as usize, y + work.y0 as usize);
+        for (hit, &[x, y]) in self.hits.iter().zip(&self.hit_pixels) {
             let (Some(wx), Some(wy)) = (
-                x.checked_sub(window.x0 as usize).filter(|&wx| wx < ww),
-                y.checked_sub(window.y0 as usize).filter(|&wy| wy < wh),
+                (x as usize)
+                    .checked_sub(window.x0 as usize)
+                    .filter(|&wx| wx < ww),
+                (y as usize)
+                    .checked_sub(window.y0 as usize)
+                    .filter(|&wy| wy < wh),
             ) else {
                 continue;
             };
@@ -466,10 +467,12 @@ impl SceneRenderer {
             inside_region,
             ..
         } = self;
+        let ww = work.width as usize;
+        let at = |x: u32, y: u32| (y - work.y0) as usize * ww + (x - work.x0) as usize;
         if *inside_region == Some(work) {
             // only last frame's hits to clear
-            for &p in hit_pixels.iter() {
-                inside[p as usize] = 0;
+            for &[x, y] in hit_pixels.iter() {
+                inside[at(x, y)] = 0;
             }
         } else {
             inside.clear();
@@ -478,12 +481,10 @@ impl SceneRenderer {
         }
         hits.clear();
         hit_pixels.clear();
-        let ww = work.width as usize;
         raster.centre_hits(camera, work, |x, y, hit| {
-            let p = (y - work.y0) as usize * ww + (x - work.x0) as usize;
             hits.push(hit);
-            hit_pixels.push(p as u32);
-            inside[p] = hits.len() as u32;
+            hit_pixels.push([x, y]);
+            inside[at(x, y)] = hits.len() as u32;
         });
     }
 
