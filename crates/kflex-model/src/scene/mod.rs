@@ -517,18 +517,17 @@ impl SceneRenderer {
             raster,
             arcs,
             hits,
-            inside,
+            hit_pixels,
             ..
         } = self;
         arcs.clear();
         if work.holds(&region) {
-            // the centre rays already cast there
-            for y in region.y0..region.y0 + region.height {
-                let row = (y - work.y0) as usize * work.width as usize;
-                for x in region.x0..region.x0 + region.width {
-                    if let Some(i) = inside[row + (x - work.x0) as usize].checked_sub(1) {
-                        arcs.push(hits[i as usize].arc_mm as f32);
-                    }
+            // the centre rays already cast there (the band is of the arcs'
+            // order statistics, so the order they come in does not matter)
+            let (x1, y1) = (region.x0 + region.width, region.y0 + region.height);
+            for (hit, &[x, y]) in hits.iter().zip(hit_pixels.iter()) {
+                if (region.x0..x1).contains(&x) && (region.y0..y1).contains(&y) {
+                    arcs.push(hit.arc_mm as f32);
                 }
             }
             return tape_band(arcs, o);
