@@ -782,3 +782,75 @@ pub(crate) fn image_box(camera: &Camera, [x0, y0, x1, y1]: [f64; 4]) -> [f64; 4]
         k.fy * yd(y1, y1 > 0.0) + k.cy,
     ]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Intrinsics;
+    use crate::instrument::Instrument;
+
+    /// Casting a tile's rays body by body finds, pixel for pixel, the hit a
+    /// lone ray finds through the nearest-first list, bit for bit.
+    #[test]
+    fn a_tiles_centre_hits_are_the_lone_rays_hits() {
+        let instrument = Instrument::kflex();
+        let cameras = [
+            Camera::default(),
+            Camera::default().with_intrinsics(Intrinsics::full_hd()),
+        ];
+        let mut raster = Rasterizer::new();
+        let mut in_windows = 0;
+        for camera in &cameras {
+            let k = camera.intrinsics;
+            for (theta, d) in [(-40.0, 12.0), (0.0, 10.0), (35.0, 20.0), (80.0, 38.0)] {
+                let shape = instrument.shape(theta, d).expect("shape");
+                raster.prepare(camera, &shape);
+                for window in [
+                    Roi::whole(k.width, k.height),
+                    Roi {
+                        x0: k.width / 5 + 1,
+                        y0: k.height / 5 + 3,
+                        width: k.width / 2 + 5,
+                        height: k.height / 2 + 7,
+                    },
+                ] {
+                    let mut tiled = Vec::new();
+                    raster.centre_hits(camera, window, |x, y, hit| tiled.push((x, y, hit)));
+                    let mut lone = Vec::new();
+                    raster.tiles(camera, window, |scene, optics, [x0, y0, x1, y1], bodies| {
+                        for y in y0..y1 {
+                            for x in x0..x1 {
+                                let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+                                if let Some(hit) =
+                                    scene.first_hit_along(bodies, u, v, &optics.ray(x, y))
+                                {
+                                    lone.push((x, y, hit));
+                                }
+                            }
+                        }
+                    });
+                    if window.area() == u64::from(k.width) * u64::from(k.height) {
+                        assert!(lone.len() > 100, "θ = {theta}, d = {d}: {}", lone.len());
+                    } else {
+                        in_windows += lone.len();
+                    }
+                    assert_eq!(tiled.len(), lone.len(), "θ = {theta}, d = {d}");
+                    let bits = |h: &SurfaceHit| {
+                        (
+                            h.t.to_bits(),
+                            h.body,
+                            h.normal.map(f64::to_bits),
+                            h.arc_mm.to_bits(),
+                            h.on_end,
+                        )
+                    };
+                    for ((x, y, a), (lx, ly, b)) in tiled.iter().zip(&lone) {
+                        assert_eq!((x, y), (lx, ly));
+                        assert_eq!(bits(a), bits(b), "θ = {theta}, d = {d}, pixel ({x}, {y})");
+                    }
+                }
+            }
+        }
+        assert!(in_windows > 100, "{in_windows}");
+    }
+}
