@@ -299,30 +299,64 @@ impl Rasterizer {
 impl Rasterizer {
     /// Calls `f(x, y, hit)` for every pixel of `window` whose centre ray
     /// meets the prepared shape, with where it meets it first.
+    ///
+    /// A fine tile's rays are cast body by body (each ray as
+    /// [`Scene::first_hit_along`] casts it, to the same hit): the rays of a
+    /// tile are independent, so the processor overlaps their divisions and
+    /// square roots.
     pub(crate) fn centre_hits(
         &mut self,
         camera: &Camera,
         window: Roi,
         mut f: impl FnMut(u32, u32, SurfaceHit),
     ) {
+        // per ray of the tile: direction, pixel position, and the nearest
+        // hit so far (distance, axial parameter, surface, body)
+        let mut rays = [(Vector3::zeros(), 0.0, 0.0); TILE_RAYS];
+        let mut best = [(f64::INFINITY, 0.0, Surface::Side, 0usize); TILE_RAYS];
         self.tiles(
             camera,
             window,
             |scene, optics, [x0, y0, x1, y1], candidates| {
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
-                        if let Some(hit) =
-                            scene.first_hit_along(candidates, u, v, &optics.ray(x, y))
-                        {
-                            f(x, y, hit);
+                let n = ((x1 - x0) * (y1 - y0)) as usize;
+                let (rays, best) = (&mut rays[..n], &mut best[..n]);
+                let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y)));
+                for ((ray, b), (x, y)) in rays.iter_mut().zip(best.iter_mut()).zip(pixels) {
+                    *ray = (optics.ray(x, y), f64::from(x) + 0.5, f64::from(y) + 0.5);
+                    *b = (f64::INFINITY, 0.0, Surface::Side, 0);
+                }
+                for &i in candidates {
+                    let i = usize::from(i);
+                    let Some(body) = scene.bodies.get(i) else {
+                        continue;
+                    };
+                    for ((d, pu, pv), b) in rays.iter().zip(best.iter_mut()) {
+                        // candidates come nearest first: a ray whose hit is
+                        // nearer than the body can be is done with it
+                        if b.0 < body.near || !body.box_holds(*pu, *pv) {
+                            continue;
                         }
+                        if let Some((t, u, s)) = body.hit(d)
+                            && t < b.0
+                        {
+                            *b = (t, u, s, i);
+                        }
+                    }
+                }
+                let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y)));
+                for (((d, _, _), &(t, u, s, i)), (x, y)) in rays.iter().zip(best.iter()).zip(pixels)
+                {
+                    if t < f64::INFINITY {
+                        f(x, y, scene.surface_hit(d, t, u, s, i));
                     }
                 }
             },
         );
     }
 }
+
+/// Rays in a fine tile.
+const TILE_RAYS: usize = (FINE * FINE) as usize;
 
 /// The unit ray through pixel position `(u, v)`, camera frame.
 #[inline]
@@ -513,7 +547,7 @@ impl CameraBody {
 
     /// The first hit of the ray from the origin along unit `d`: its
     /// distance, the axial parameter in `[0, 1]` and the surface.
-    #[inline]
+    #[inline(always)]
     fn hit(&self, d: &Vector3<f64>) -> Option<(f64, f64, Surface)> {
         let mut best: Option<(f64, f64, Surface)> = None;
         let mut keep = |t: f64, u: f64, s: Surface| {
@@ -673,16 +707,21 @@ impl Scene {
                 best = Some((t, u, s, i));
             }
         }
-        best.map(|(t, u, s, i)| {
-            let body = &self.bodies[i];
-            SurfaceHit {
-                t,
-                body: i,
-                normal: body.normal(d, t, u, s),
-                arc_mm: body.arc[0] + u * (body.arc[1] - body.arc[0]),
-                on_end: s != Surface::Side,
-            }
-        })
+        best.map(|(t, u, s, i)| self.surface_hit(d, t, u, s, i))
+    }
+
+    /// The hit of the ray along unit `d` on body `i` at distance `t`, axial
+    /// parameter `u`, surface `s`.
+    #[inline]
+    fn surface_hit(&self, d: &Vector3<f64>, t: f64, u: f64, s: Surface, i: usize) -> SurfaceHit {
+        let body = &self.bodies[i];
+        SurfaceHit {
+            t,
+            body: i,
+            normal: body.normal(d, t, u, s),
+            arc_mm: body.arc[0] + u * (body.arc[1] - body.arc[0]),
+            on_end: s != Surface::Side,
+        }
     }
 }
 
@@ -742,4 +781,76 @@ pub(crate) fn image_box(camera: &Camera, [x0, y0, x1, y1]: [f64; 4]) -> [f64; 4]
         k.fx * xd(x1, x1 > 0.0) + k.cx,
         k.fy * yd(y1, y1 > 0.0) + k.cy,
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Intrinsics;
+    use crate::instrument::Instrument;
+
+    /// Casting a tile's rays body by body finds, pixel for pixel, the hit a
+    /// lone ray finds through the nearest-first list, bit for bit.
+    #[test]
+    fn a_tiles_centre_hits_are_the_lone_rays_hits() {
+        let instrument = Instrument::kflex();
+        let cameras = [
+            Camera::default(),
+            Camera::default().with_intrinsics(Intrinsics::full_hd()),
+        ];
+        let mut raster = Rasterizer::new();
+        let mut in_windows = 0;
+        for camera in &cameras {
+            let k = camera.intrinsics;
+            for (theta, d) in [(-40.0, 12.0), (0.0, 10.0), (35.0, 20.0), (80.0, 38.0)] {
+                let shape = instrument.shape(theta, d).expect("shape");
+                raster.prepare(camera, &shape);
+                for window in [
+                    Roi::whole(k.width, k.height),
+                    Roi {
+                        x0: k.width / 5 + 1,
+                        y0: k.height / 5 + 3,
+                        width: k.width / 2 + 5,
+                        height: k.height / 2 + 7,
+                    },
+                ] {
+                    let mut tiled = Vec::new();
+                    raster.centre_hits(camera, window, |x, y, hit| tiled.push((x, y, hit)));
+                    let mut lone = Vec::new();
+                    raster.tiles(camera, window, |scene, optics, [x0, y0, x1, y1], bodies| {
+                        for y in y0..y1 {
+                            for x in x0..x1 {
+                                let (u, v) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+                                if let Some(hit) =
+                                    scene.first_hit_along(bodies, u, v, &optics.ray(x, y))
+                                {
+                                    lone.push((x, y, hit));
+                                }
+                            }
+                        }
+                    });
+                    if window.area() == u64::from(k.width) * u64::from(k.height) {
+                        assert!(lone.len() > 100, "θ = {theta}, d = {d}: {}", lone.len());
+                    } else {
+                        in_windows += lone.len();
+                    }
+                    assert_eq!(tiled.len(), lone.len(), "θ = {theta}, d = {d}");
+                    let bits = |h: &SurfaceHit| {
+                        (
+                            h.t.to_bits(),
+                            h.body,
+                            h.normal.map(f64::to_bits),
+                            h.arc_mm.to_bits(),
+                            h.on_end,
+                        )
+                    };
+                    for ((x, y, a), (lx, ly, b)) in tiled.iter().zip(&lone) {
+                        assert_eq!((x, y), (lx, ly));
+                        assert_eq!(bits(a), bits(b), "θ = {theta}, d = {d}, pixel ({x}, {y})");
+                    }
+                }
+            }
+        }
+        assert!(in_windows > 100, "{in_windows}");
+    }
 }

@@ -19,8 +19,10 @@ use crate::raster::{Rasterizer, SurfaceHit};
 use crate::roi::Roi;
 use crate::working::WorkingRegions;
 pub use background::{Background, Tissue};
-use sensor::{Response, Sensor, gaussian_blur, linear_from_encoded, normal_table, response_table};
-use shading::{Surroundings, surface_colour, tape_band, under_tape};
+use sensor::{
+    Normals, Response, Sensor, gaussian_blur, linear_from_encoded, normal_table, response_table,
+};
+use shading::{Look, Surroundings, surface_look, tape_band, under_tape};
 
 /// What a cached background depends on: kind, tissue colour, seed, width, height.
 type BackgroundKey = (Background, Tissue, u64, u32, u32);
@@ -176,10 +178,14 @@ pub struct Frame {
 pub struct SceneRenderer {
     raster: Rasterizer,
     cache: Option<(BackgroundKey, Vec<f32>, [f32; 3])>,
-    /// Centre-ray hits of the last frame's work region, and per pixel of that
-    /// region the index of its hit plus one (0: none).
+    /// Centre-ray hits of the last frame's work region, each with its pixel
+    /// (full image), and per pixel of the region the index of its hit plus
+    /// one (0: none).
     hits: Vec<SurfaceHit>,
+    hit_pixels: Vec<[u32; 2]>,
     inside: Vec<u32>,
+    /// The region `inside` covers (its entries are zero but at `hit_pixels`).
+    inside_region: Option<Roi>,
     arcs: Vec<f32>,
     /// The last camera's vignetting over the last shaded region.
     vignetting: Option<((Camera, Roi), Vec<f32>)>,
@@ -187,11 +193,19 @@ pub struct SceneRenderer {
     /// by default); `None` in the pair where the camera has none.
     working: Option<(Camera, Option<WorkingRegions>)>,
     /// Standard-normal samples; each frame reads them in a seeded pseudo-random order.
-    normals: Vec<f32>,
-    /// Encoded background of the last sharp frame's region (see `render_window`).
+    normals: Option<Box<Normals>>,
+    /// Encoded background of the last sharp frame's region (see
+    /// `render_window`); between frames it holds the background alone.
     encoded: Option<(EncodedKey, Vec<f32>)>,
-    /// Per pixel of the last shaded region: whether the instrument changed it.
-    shaded: Vec<u8>,
+    /// The pixels the instrument changed in the last shaded region: index in
+    /// the region and linear colour.
+    patches: Vec<(u32, [f32; 3])>,
+    /// The encoded background values a frame's patches covered, to put back.
+    undo: Vec<[f32; 3]>,
+    /// The looks of a frame's patches, in order: one a pixel, four an edge's.
+    looks: Vec<Look>,
+    /// Per patch: whether it is an edge's (four looks).
+    edges: Vec<bool>,
     /// One row of encoded values.
     row: Vec<f32>,
     /// The camera's response (`sensor::response_table`), once made.
@@ -311,7 +325,7 @@ impl SceneRenderer {
             Some(o) => self.tape_band(camera, shape, o, work),
             None => None,
         };
-        let mut img = self.shade(camera, shaded_region, work, band);
+        self.shade(camera, shaded_region, work, band);
         // the sensor: vignetting first (the lens), then blur, noise and 8 bits
         let (sw, sh) = (shaded_region.width as usize, shaded_region.height as usize);
         // the lens's vignetting: separable in neither axis, so a table of the
@@ -326,12 +340,10 @@ impl SceneRenderer {
             }
             self.vignetting = Some((key, table));
         }
-        if self.normals.is_empty() {
-            self.normals = normal_table();
-        }
+        let normals = self.normals.get_or_insert_with(normal_table);
         let response = self.response.get_or_insert_with(response_table);
         let sensor = Sensor {
-            normals: &self.normals,
+            normals,
             response,
             key: params.seed.wrapping_mul(0xD1B5_4A32_D192_ED03)
                 ^ params.frame.wrapping_mul(0x8CB9_2BA7_2F3D_8DD7)
@@ -340,78 +352,101 @@ impl SceneRenderer {
             sigma: params.noise_std as f32,
         };
         let vignetting = self.vignetting.as_ref().map_or(&[][..], |v| &v.1[..]);
-        let sharp = params.blur_px <= 0.0;
-        if sharp {
+        let (ww, wh) = (window.width as usize, window.height as usize);
+        let mut rgb = vec![0u8; 3 * ww * wh];
+        // the window's values in the shaded region: rows of `sw` pixels from `origin`
+        let origin = 3
+            * ((window.y0 - shaded_region.y0) as usize * sw
+                + (window.x0 - shaded_region.x0) as usize);
+        let first = |y: usize| 3 * ((window.y0 as usize + y) * w as usize + window.x0 as usize);
+        let background = self.cache.as_ref().map_or(&[][..], |c| &c.1[..]);
+        if params.blur_px <= 0.0 {
             // without blur a background pixel's encoded value is the same
             // every frame: kept per (background, camera, region, gain), so a
-            // frame encodes only the pixels the instrument changed
+            // frame encodes only the pixels the instrument changed, over it,
+            // and puts the background back after
             let bg_key = (key_bg, *camera, shaded_region, sensor.gain.to_bits());
-            if self.encoded.as_ref().map(|e| e.0) != Some(bg_key)
-                && let Some((_, image, _)) = self.cache.as_ref()
-            {
-                let mut encoded = Vec::with_capacity(3 * sw * sh);
-                for y in 0..sh {
-                    let start = 3
-                        * ((shaded_region.y0 as usize + y) * w as usize
-                            + shaded_region.x0 as usize);
-                    let row = &image[start..start + 3 * sw];
-                    for (px, &v) in row.chunks_exact(3).zip(&vignetting[y * sw..(y + 1) * sw]) {
-                        encoded.extend(px.iter().map(|&c| sensor.encode(c * v)));
+            let encoded = match &mut self.encoded {
+                Some((k, e)) if *k == bg_key => e,
+                slot => {
+                    let mut encoded = Vec::with_capacity(3 * sw * sh);
+                    for y in 0..sh {
+                        let start = 3
+                            * ((shaded_region.y0 as usize + y) * w as usize
+                                + shaded_region.x0 as usize);
+                        let row = &background[start..start + 3 * sw];
+                        for (px, &v) in row.chunks_exact(3).zip(&vignetting[y * sw..(y + 1) * sw]) {
+                            encoded.extend(px.iter().map(|&c| sensor.encode(c * v)));
+                        }
                     }
+                    &mut slot.insert((bg_key, encoded)).1
                 }
-                self.encoded = Some((bg_key, encoded));
+            };
+            self.undo.clear();
+            for &(p, c) in &self.patches {
+                let (p, v) = (
+                    p as usize,
+                    vignetting.get(p as usize).copied().unwrap_or(1.0),
+                );
+                let px = &mut encoded[3 * p..3 * p + 3];
+                self.undo.push([px[0], px[1], px[2]]);
+                for (e, c) in px.iter_mut().zip(c) {
+                    *e = sensor.encode(c * v);
+                }
+            }
+            for (y, out) in rgb.chunks_exact_mut(3 * ww).enumerate() {
+                let src = origin + 3 * y * sw;
+                sensor.span_encoded(first(y), &encoded[src..src + 3 * ww], out);
+            }
+            for (&(p, _), old) in self.patches.iter().zip(&self.undo) {
+                encoded[3 * p as usize..3 * p as usize + 3].copy_from_slice(old);
             }
         } else {
-            // the lens's vignetting first, then the optics' blur
+            // the scene's light over the region, the lens's vignetting, then
+            // the optics' blur
+            let mut img = Vec::with_capacity(3 * sw * sh);
+            for y in 0..sh {
+                let start =
+                    3 * ((shaded_region.y0 as usize + y) * w as usize + shaded_region.x0 as usize);
+                img.extend_from_slice(&background[start..start + 3 * sw]);
+            }
+            for &(p, c) in &self.patches {
+                img[3 * p as usize..3 * p as usize + 3].copy_from_slice(&c);
+            }
             for (px, &v) in img.chunks_exact_mut(3).zip(vignetting) {
                 px.iter_mut().for_each(|c| *c *= v);
             }
             gaussian_blur(&mut img, sw, sh, params.blur_px);
+            let mut row = std::mem::take(&mut self.row);
+            for (y, out) in rgb.chunks_exact_mut(3 * ww).enumerate() {
+                let src = origin + 3 * y * sw;
+                row.clear();
+                row.extend(img[src..src + 3 * ww].iter().map(|&v| sensor.encode(v)));
+                sensor.span_encoded(first(y), &row, out);
+            }
+            self.row = row;
         }
-        let (ww, wh) = (window.width as usize, window.height as usize);
-        let mut rgb = vec![0u8; 3 * ww * wh];
+        // the masks: each centre hit inside the window, under the tape or not
         let mut instrument = vec![0u8; ww * wh];
         let mut occluder = vec![0u8; ww * wh];
-        let work_w = work.width as usize;
-        let mut row = std::mem::take(&mut self.row);
-        for y in 0..wh {
-            let (fy, sy) = (
-                window.y0 as usize + y,
-                (window.y0 - shaded_region.y0) as usize,
-            );
-            let sx = (window.x0 - shaded_region.x0) as usize;
-            let src = 3 * ((y + sy) * sw + sx);
-            let first = 3 * (fy * w as usize + window.x0 as usize);
-            row.clear();
-            match (&self.encoded, sharp) {
-                (Some((_, encoded)), true) => {
-                    row.extend_from_slice(&encoded[src..src + 3 * ww]);
-                    // the pixels the instrument changed, through the lens
-                    let p0 = (y + sy) * sw + sx;
-                    for x in 0..ww {
-                        if self.shaded.get(p0 + x).is_some_and(|&s| s != 0) {
-                            let v = vignetting.get(p0 + x).copied().unwrap_or(1.0);
-                            for c in 0..3 {
-                                row[3 * x + c] = sensor.encode(img[src + 3 * x + c] * v);
-                            }
-                        }
-                    }
-                }
-                _ => row.extend(img[src..src + 3 * ww].iter().map(|&v| sensor.encode(v))),
-            }
-            sensor.span_encoded(first, &row, &mut rgb[3 * y * ww..3 * (y + 1) * ww]);
-            let wrow = (fy - work.y0 as usize) * work_w + (window.x0 - work.x0) as usize;
-            for x in 0..ww {
-                if let Some(i) = self.inside[wrow + x].checked_sub(1) {
-                    if under_tape(&self.hits[i as usize], band) {
-                        occluder[y * ww + x] = 1;
-                    } else {
-                        instrument[y * ww + x] = 1;
-                    }
-                }
+        for (hit, &[x, y]) in self.hits.iter().zip(&self.hit_pixels) {
+            let (Some(wx), Some(wy)) = (
+                (x as usize)
+                    .checked_sub(window.x0 as usize)
+                    .filter(|&wx| wx < ww),
+                (y as usize)
+                    .checked_sub(window.y0 as usize)
+                    .filter(|&wy| wy < wh),
+            ) else {
+                continue;
+            };
+            let i = wy * ww + wx;
+            if under_tape(hit, band) {
+                occluder[i] = 1;
+            } else {
+                instrument[i] = 1;
             }
         }
-        self.row = row;
         Ok(Frame {
             width: window.width,
             height: window.height,
@@ -421,21 +456,35 @@ impl SceneRenderer {
         })
     }
 
-    /// Casts the ray through every pixel centre of `work`: `hits` and `inside`.
+    /// Casts the ray through every pixel centre of `work`: `hits`,
+    /// `hit_pixels` and `inside`.
     fn cast_centres(&mut self, camera: &Camera, work: Roi) {
         let Self {
             raster,
             hits,
+            hit_pixels,
             inside,
+            inside_region,
             ..
         } = self;
-        hits.clear();
-        inside.clear();
-        inside.resize(work.area() as usize, 0);
         let ww = work.width as usize;
+        let at = |x: u32, y: u32| (y - work.y0) as usize * ww + (x - work.x0) as usize;
+        if *inside_region == Some(work) {
+            // only last frame's hits to clear
+            for &[x, y] in hit_pixels.iter() {
+                inside[at(x, y)] = 0;
+            }
+        } else {
+            inside.clear();
+            inside.resize(work.area() as usize, 0);
+            *inside_region = Some(work);
+        }
+        hits.clear();
+        hit_pixels.clear();
         raster.centre_hits(camera, work, |x, y, hit| {
             hits.push(hit);
-            inside[(y - work.y0) as usize * ww + (x - work.x0) as usize] = hits.len() as u32;
+            hit_pixels.push([x, y]);
+            inside[at(x, y)] = hits.len() as u32;
         });
     }
 
@@ -468,18 +517,17 @@ impl SceneRenderer {
             raster,
             arcs,
             hits,
-            inside,
+            hit_pixels,
             ..
         } = self;
         arcs.clear();
         if work.holds(&region) {
-            // the centre rays already cast there
-            for y in region.y0..region.y0 + region.height {
-                let row = (y - work.y0) as usize * work.width as usize;
-                for x in region.x0..region.x0 + region.width {
-                    if let Some(i) = inside[row + (x - work.x0) as usize].checked_sub(1) {
-                        arcs.push(hits[i as usize].arc_mm as f32);
-                    }
+            // the centre rays already cast there (the band is of the arcs'
+            // order statistics, so the order they come in does not matter)
+            let (x1, y1) = (region.x0 + region.width, region.y0 + region.height);
+            for (hit, &[x, y]) in hits.iter().zip(hit_pixels.iter()) {
+                if (region.x0..x1).contains(&x) && (region.y0..y1).contains(&y) {
+                    arcs.push(hit.arc_mm as f32);
                 }
             }
             return tape_band(arcs, o);
@@ -488,44 +536,38 @@ impl SceneRenderer {
         tape_band(arcs, o)
     }
 
-    /// The scene's light over `region` (linear RGB, row-major): the
-    /// background with the instrument shaded over it, edges anti-aliased.
-    fn shade(
-        &mut self,
-        camera: &Camera,
-        region: Roi,
-        work: Roi,
-        band: Option<(f32, f32)>,
-    ) -> Vec<f32> {
-        self.shaded.clear();
-        self.shaded.resize(region.area() as usize, 0);
+    /// The scene's light over `region` where the instrument changes it:
+    /// `patches`, each pixel's index in the region and its linear RGB (the
+    /// instrument shaded, edges anti-aliased over the background).
+    fn shade(&mut self, camera: &Camera, region: Roi, work: Roi, band: Option<(f32, f32)>) {
+        self.patches.clear();
+        self.looks.clear();
+        self.edges.clear();
         let k = camera.intrinsics;
         let (w, h) = (k.width as usize, k.height as usize);
         let Some((_, background, mean)) = self.cache.as_ref() else {
-            return vec![0.0; 3 * region.area() as usize];
+            return;
         };
         let env = Surroundings {
             camera,
             image: background,
             mean: *mean,
         };
-        let (rw, rh) = (region.width as usize, region.height as usize);
-        let mut img = Vec::with_capacity(3 * rw * rh);
-        for y in 0..rh {
-            let start = 3 * ((region.y0 as usize + y) * w + region.x0 as usize);
-            img.extend_from_slice(&background[start..start + 3 * rw]);
-        }
+        let rw = region.width as usize;
         let Self {
             raster,
             hits,
             inside,
-            shaded,
+            patches,
+            looks,
+            edges,
             ..
         } = self;
         let work_w = work.width as usize;
         let centre = |x: usize, y: usize| -> Option<u32> {
             inside[(y - work.y0 as usize) * work_w + (x - work.x0 as usize)].checked_sub(1)
         };
+        // the looks first (the patches' colours wait for the reflected pixels)
         raster.tiles(
             camera,
             region,
@@ -544,36 +586,46 @@ impl SceneRenderer {
                         .any(|&(nx, ny)| {
                             nx < w && ny < h && centre(nx, ny).is_some() != here.is_some()
                         });
-                        let p = (y - region.y0 as usize) * rw + (x - region.x0 as usize);
-                        let o = 3 * p;
-                        if edge || here.is_some() {
-                            shaded[p] = 1;
-                        }
+                        let p = ((y - region.y0 as usize) * rw + (x - region.x0 as usize)) as u32;
                         if edge {
-                            let bg = [img[o], img[o + 1], img[o + 2]];
-                            let mut sum = [0.0f32; 3];
+                            let o = 3 * (y * w + x);
+                            let bg = [background[o], background[o + 1], background[o + 2]];
                             for (dx, dy) in EDGE_SAMPLES {
                                 let (u, v) = (x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
-                                let c = match scene.first_hit(camera, candidates, u, v) {
+                                looks.push(match scene.first_hit(camera, candidates, u, v) {
                                     (Some(hit), d) => {
-                                        surface_colour(&scene.bodies, &hit, &d, band, &env)
+                                        surface_look(&scene.bodies, &hit, &d, band, &env)
                                     }
-                                    (None, _) => bg,
-                                };
-                                (0..3).for_each(|ch| sum[ch] += 0.25 * c[ch]);
+                                    (None, _) => Look::Done(bg),
+                                });
                             }
-                            img[o..o + 3].copy_from_slice(&sum);
+                            patches.push((p, [0.0; 3]));
+                            edges.push(true);
                         } else if let Some(i) = here {
                             let hit = &hits[i as usize];
                             let d = optics.ray(x as u32, y as u32);
-                            let c = surface_colour(&scene.bodies, hit, &d, band, &env);
-                            img[o..o + 3].copy_from_slice(&c);
+                            looks.push(surface_look(&scene.bodies, hit, &d, band, &env));
+                            patches.push((p, [0.0; 3]));
+                            edges.push(false);
                         }
                     }
                 }
             },
         );
-        img
+        // then the colours: an edge's the mean of its four rays'
+        let mut next = looks.iter();
+        for ((_, c), &edge) in patches.iter_mut().zip(edges.iter()) {
+            if edge {
+                let mut sum = [0.0f32; 3];
+                for look in next.by_ref().take(4) {
+                    let c = look.colour(&env);
+                    (0..3).for_each(|ch| sum[ch] += 0.25 * c[ch]);
+                }
+                *c = sum;
+            } else if let Some(look) = next.next() {
+                *c = look.colour(&env);
+            }
+        }
     }
 }
 

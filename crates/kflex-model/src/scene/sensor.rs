@@ -11,12 +11,20 @@ const NORMALS: usize = 1 << 16;
 
 /// The standard-normal table behind the sensor noise (fixed seed: the table
 /// is a constant of the simulator, each frame reads it in its own order).
-pub(super) fn normal_table() -> Vec<f32> {
+pub(super) fn normal_table() -> Box<Normals> {
     let mut rng = ChaCha8Rng::seed_from_u64(0x6e6f_6973_6500_0000);
-    (0..NORMALS)
-        .map(|_| Distribution::<f32>::sample(&StandardNormal, &mut rng))
-        .collect()
+    let mut table = Box::new([0.0; NORMALS]);
+    for v in table.iter_mut() {
+        *v = Distribution::<f32>::sample(&StandardNormal, &mut rng);
+    }
+    table
 }
+
+/// [`normal_table`]'s type: its size known, so a 16-bit index needs no bounds check.
+pub(super) type Normals = [f32; NORMALS];
+
+/// Values [`Sensor::span_encoded`] quantises in one vectorised step: four groups of four.
+const RUN: usize = 16;
 
 /// Entries of the response table over linear light `[0, 1]`.
 const RESPONSE: usize = 8192;
@@ -52,6 +60,18 @@ pub(super) fn response_table() -> Box<Response> {
     table
 }
 
+/// `y as u8` for `y` in `[0, 255.5]` (not NaN), in steps the compiler
+/// vectorises (Rust's saturating `as` it does not): adding 2²³ rounds `y`
+/// to the nearest integer, which lands in the low bits of the sum; one less
+/// where that rounded up.
+#[inline(always)]
+fn truncate(y: f32) -> u8 {
+    const MAGIC: f32 = 8_388_608.0;
+    let m = y + MAGIC;
+    let up = u32::from(m - MAGIC > y);
+    (m.to_bits().wrapping_sub(MAGIC.to_bits()).wrapping_sub(up)) as u8
+}
+
 /// [`response_table`]'s type: its size known, so reading it needs no bounds check.
 pub(super) type Response = [f32; RESPONSE + 1];
 
@@ -59,7 +79,8 @@ pub(super) type Response = [f32; RESPONSE + 1];
 /// counter-based hash (SplitMix64's finaliser; a Gaussian per pixel and
 /// channel at a fraction of a sampler's cost), 8 bits.
 pub(super) struct Sensor<'a> {
-    pub(super) normals: &'a [f32],
+    /// [`normal_table`].
+    pub(super) normals: &'a Normals,
     /// [`response_table`].
     pub(super) response: &'a Response,
     pub(super) key: u64,
@@ -100,7 +121,7 @@ impl Sensor<'_> {
     /// clamp, so adding ½ and truncating rounds to nearest.
     #[inline(always)]
     fn quantise(encoded: f32, noise: f32) -> u8 {
-        ((encoded + noise).clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+        truncate((encoded + noise).clamp(0.0, 1.0) * 255.0 + 0.5)
     }
 
     /// Value `i` of the image (`3 · pixel + channel`) as the sensor reads it.
@@ -124,37 +145,50 @@ impl Sensor<'_> {
     }
 
     /// [`Sensor::span`] of values already encoded ([`Sensor::encode`]).
+    ///
+    /// Whole runs of four groups (16 values) draw their 16 normals first and
+    /// then add, clip and quantise them in one loop the compiler vectorises;
+    /// the values are those [`Sensor::pixel`] gives, bit for bit.
     pub(super) fn span_encoded(&self, first: usize, encoded: &[f32], out: &mut [u8]) {
+        let n = out.len().min(encoded.len());
+        let (out, encoded) = (&mut out[..n], &encoded[..n]);
         if self.sigma <= 0.0 {
             for (o, &e) in out.iter_mut().zip(encoded) {
                 *o = Self::quantise(e, 0.0);
             }
             return;
         }
-        let n = out.len().min(encoded.len());
-        // up to the first whole group of four, then whole groups, then the rest
-        let head = ((4 - first % 4) % 4).min(n);
         let one = |j: usize| {
             Self::quantise(
                 encoded[j],
                 self.noise(self.bits((first + j) / 4), (first + j) % 4),
             )
         };
+        // up to the first whole group of four, then runs of four whole
+        // groups, then the rest one by one
+        let head = ((4 - first % 4) % 4).min(n);
         for (j, o) in out.iter_mut().enumerate().take(head) {
             *o = one(j);
         }
-        let whole = (n - head) / 4;
-        for (g, (o, e)) in out[head..head + 4 * whole]
-            .chunks_exact_mut(4)
-            .zip(encoded[head..head + 4 * whole].chunks_exact(4))
+        let runs = (n - head) / RUN;
+        let group0 = (first + head) / 4;
+        let mut noise = [0.0f32; RUN];
+        for (r, (o, e)) in out[head..head + RUN * runs]
+            .chunks_exact_mut(RUN)
+            .zip(encoded[head..head + RUN * runs].chunks_exact(RUN))
             .enumerate()
         {
-            let bits = self.bits((first + head) / 4 + g);
-            for lane in 0..4 {
-                o[lane] = Self::quantise(e[lane], self.noise(bits, lane));
+            for (g, lanes) in noise.chunks_exact_mut(4).enumerate() {
+                let bits = self.bits(group0 + RUN / 4 * r + g);
+                for (lane, z) in lanes.iter_mut().enumerate() {
+                    *z = self.normals[((bits >> (16 * lane)) & 0xFFFF) as usize];
+                }
+            }
+            for ((o, &e), &z) in o.iter_mut().zip(e).zip(&noise) {
+                *o = Self::quantise(e, self.sigma * z);
             }
         }
-        for (j, o) in out.iter_mut().enumerate().take(n).skip(head + 4 * whole) {
+        for (j, o) in out.iter_mut().enumerate().skip(head + RUN * runs) {
             *o = one(j);
         }
     }
@@ -287,11 +321,40 @@ mod tests {
         }
     }
 
+    /// The vectorisable truncation is Rust's `as u8` on every value the
+    /// quantiser makes (a sample of all `f32` around `[0, 1]`).
+    #[test]
+    fn quantising_truncates_as_a_cast_does() {
+        let old = |x: f32| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+        let check = |x: f32| assert_eq!(Sensor::quantise(x, 0.0), old(x), "{x}");
+        for b in (0..=2.5f32.to_bits()).step_by(61) {
+            check(f32::from_bits(b));
+        }
+        for b in ((-0.0f32).to_bits()..=(-1.5f32).to_bits()).step_by(1009) {
+            check(f32::from_bits(b));
+        }
+        // every level's edges
+        for k in 0..=255u32 {
+            let edge = (k as f32 - 0.5) / 255.0;
+            let mut x = edge;
+            for _ in 0..64 {
+                check(x);
+                x = f32::from_bits(x.to_bits().wrapping_add(1));
+            }
+            check(f32::from_bits(edge.to_bits().wrapping_sub(1)));
+            check(k as f32 / 255.0);
+        }
+        for x in [f32::INFINITY, f32::NEG_INFINITY, f32::MAX, f32::MIN, 1e-40] {
+            check(x);
+        }
+    }
+
     #[test]
     fn sensor_pixel_and_image_agree() {
-        let normals: Vec<f32> = (0..NORMALS)
-            .map(|i| (i as f32 / NORMALS as f32) - 0.5)
-            .collect();
+        let mut normals = Box::new([0.0f32; NORMALS]);
+        for (i, v) in normals.iter_mut().enumerate() {
+            *v = (i as f32 / NORMALS as f32) - 0.5;
+        }
         for sigma in [0.0, 0.02] {
             let response = response_table();
             let sensor = Sensor {
@@ -307,7 +370,16 @@ mod tests {
                 assert_eq!(image[i], sensor.pixel(i, v), "value {i}");
             }
             // a span from any start reads each value as the whole image does
-            for (first, len) in [(0, 1003), (5, 17), (333, 1), (998, 5)] {
+            for (first, len) in [
+                (0, 1003),
+                (5, 17),
+                (333, 1),
+                (998, 5),
+                (3, 16),
+                (1, 50),
+                (16, 32),
+                (7, 996),
+            ] {
                 let mut out = vec![0u8; len];
                 sensor.span(first, &values[first..first + len], &mut out);
                 assert_eq!(out, image[first..first + len], "span {first}+{len}");

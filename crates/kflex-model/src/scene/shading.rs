@@ -44,19 +44,72 @@ impl Surroundings<'_> {
     /// The tissue seen along the reflected ray `r` (camera frame): where
     /// it points ahead, the background pixel it would project to (clamped to
     /// the frame); where it points back past the camera, the dark overtube
-    /// and shadowed tissue around it.
-    fn along(&self, r: &Vector3<f64>) -> [f32; 3] {
+    /// and shadowed tissue around it. The pixel is named, not read (see [`Look`]).
+    fn along(&self, r: &Vector3<f64>) -> Seen {
         if r.z < 0.05 {
-            return self.mean.map(|c| 0.3 * c);
+            return Seen::Colour(self.mean.map(|c| 0.3 * c));
         }
         let k = &self.camera.intrinsics;
         let [xd, yd] = self.camera.lens.distort(r.x / r.z, r.y / r.z);
         let u = (k.fx * xd + k.cx).clamp(0.0, f64::from(k.width) - 1.0) as usize;
         let v = (k.fy * yd + k.cy).clamp(0.0, f64::from(k.height) - 1.0) as usize;
-        let i = 3 * (v * k.width as usize + u);
+        Seen::At(3 * (v * k.width as usize + u))
+    }
+
+    /// The colour at `i` of the background (its mean where outside).
+    #[inline]
+    fn at(&self, i: usize) -> [f32; 3] {
         match self.image.get(i..i + 3) {
             Some(p) => [p[0], p[1], p[2]],
             None => self.mean,
+        }
+    }
+}
+
+/// What the steel reflects at a point: a background pixel (the index of
+/// its red value) or a colour.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Seen {
+    At(usize),
+    Colour([f32; 3]),
+}
+
+/// A surface's colour, or all of it but what the steel reflects: the
+/// reflected pixel, in a background image too large for the cache, is read
+/// after a whole frame's looks are made ([`Look::colour`]), in a loop of
+/// independent reads the processor overlaps.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Look {
+    Done([f32; 3]),
+    Steel {
+        diffuse: f64,
+        reflected: f64,
+        highlight: f64,
+        seen: Seen,
+    },
+}
+
+impl Look {
+    /// The colour, reading the reflected pixel from `env`.
+    #[inline]
+    pub(super) fn colour(&self, env: &Surroundings<'_>) -> [f32; 3] {
+        match *self {
+            Look::Done(c) => c,
+            Look::Steel {
+                diffuse,
+                reflected,
+                highlight,
+                seen,
+            } => {
+                let seen = match seen {
+                    Seen::At(i) => env.at(i),
+                    Seen::Colour(c) => c,
+                };
+                std::array::from_fn(|k| {
+                    (f64::from(METAL[k]) * diffuse + f64::from(seen[k]) * reflected + highlight)
+                        as f32
+                })
+            }
         }
     }
 }
@@ -67,15 +120,15 @@ pub(super) fn under_tape(hit: &SurfaceHit, tape: Option<(f32, f32)>) -> bool {
     tape.is_some_and(|(lo, hi)| arc >= lo && arc <= hi)
 }
 
-/// The colour of the surface at `hit`, seen along unit `d`: tape where
+/// The look of the surface at `hit`, seen along unit `d`: tape where
 /// [`under_tape`], else steel; `env` is what the steel reflects.
-pub(super) fn surface_colour(
+pub(super) fn surface_look(
     bodies: &[CameraBody],
     hit: &SurfaceHit,
     d: &Vector3<f64>,
     tape: Option<(f32, f32)>,
     env: &Surroundings<'_>,
-) -> [f32; 3] {
+) -> Look {
     let n = hit.normal;
     let cos = (-n.dot(d)).clamp(0.0, 1.0);
     let light = INSTRUMENT_LIGHT * falloff(hit.t);
@@ -83,7 +136,7 @@ pub(super) fn surface_colour(
         // matte: Lambert, a faint sheen
         let diffuse = (0.15 + 0.85 * cos) * light;
         let sheen = 0.04 * cos.powi(16) * light;
-        return TAPE.map(|c| (f64::from(c) * diffuse + sheen) as f32);
+        return Look::Done(TAPE.map(|c| (f64::from(c) * diffuse + sheen) as f32));
     }
     // the backbone, seen through the gaps between discs, sits in their shadow
     let body = &bodies[hit.body];
@@ -106,9 +159,12 @@ pub(super) fn surface_colour(
     // the tissue it reflects is lit about as the steel is (no brighter than nominal)
     let reflected = 0.22 * fresnel * shadow * gloss * falloff(hit.t).min(1.0);
     let highlight = (0.9 * cos.powi(80) + 0.2 * cos.powi(10)) * light * shadow * gloss;
-    std::array::from_fn(|k| {
-        (f64::from(METAL[k]) * diffuse + f64::from(seen[k]) * reflected + highlight) as f32
-    })
+    Look::Steel {
+        diffuse,
+        reflected,
+        highlight,
+        seen,
+    }
 }
 
 /// The arc-length band `[lo, hi]` holding `o.fraction` of `arcs` (the
