@@ -86,23 +86,107 @@ fn metal_side(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], share: f32) -> bo
     ((ch[0] - metal[0]) * d[0] + (ch[1] - metal[1]) * d[1]) < share * dd
 }
 
-/// Calls `f(a, b)` for the region roots on either side of every cell edge
-/// (right and down neighbours) where they differ.
-fn for_each_edge(cell_root: &[u32], cols: usize, mut f: impl FnMut(usize, usize)) {
+/// Calls `f(a, b)` for the merged regions on either side of every cell
+/// edge (right and down neighbours) where they differ: `labels` are the
+/// cells' leaves, `parent` each leaf's region (fully compressed). Cells of
+/// one leaf are skipped without looking their region up.
+#[inline(always)]
+fn for_each_edge(labels: &[u32], parent: &[u32], cols: usize, mut f: impl FnMut(usize, usize)) {
     if cols == 0 {
         return;
     }
-    let mut rows = cell_root.chunks_exact(cols).peekable();
+    let mut rows = labels.chunks_exact(cols).peekable();
     while let Some(row) = rows.next() {
-        for pair in row.windows(2) {
-            if pair[0] != pair[1] {
-                f(pair[0] as usize, pair[1] as usize);
+        let below = rows.peek().copied().unwrap_or(&[]);
+        for (x, &la) in row.iter().enumerate() {
+            // right, then down: only across a leaf's edge is the region looked up
+            for lb in [row.get(x + 1), below.get(x)].into_iter().flatten() {
+                if la != *lb {
+                    let (a, b) = (parent[la as usize], parent[*lb as usize]);
+                    if a != b {
+                        f(a as usize, b as usize);
+                    }
+                }
             }
         }
-        if let Some(below) = rows.peek() {
-            for (&a, &b) in row.iter().zip(below.iter()) {
-                if a != b {
-                    f(a as usize, b as usize);
+    }
+}
+
+/// Calls `f(r, other)` for every cell edge between a region `r` of class
+/// `class` and another region: each such region's edges are walked in its
+/// own box (one cell wider above and to the left), which for the few small
+/// regions this is asked of (highlights, clipped light) is far less than
+/// the whole grid; where the boxes add up to more than the grid, the grid is
+/// walked once instead.
+#[allow(clippy::too_many_arguments)]
+fn edges_of_class(
+    labels: &[u32],
+    parent: &[u32],
+    cols: usize,
+    leaf_box: &[[u32; 4]],
+    boxes: &mut Vec<[u32; 4]>,
+    region_class: &[u8],
+    class: u8,
+    mut f: impl FnMut(usize, usize),
+) {
+    if cols == 0 {
+        return;
+    }
+    let rows = labels.len() / cols;
+    boxes.clear();
+    boxes.resize(region_class.len(), [u32::MAX, u32::MAX, 0, 0]);
+    for (leaf, b) in leaf_box.iter().enumerate() {
+        let r = parent[leaf] as usize;
+        if region_class[r] == class {
+            let c = &mut boxes[r];
+            *c = [
+                c[0].min(b[0]),
+                c[1].min(b[1]),
+                c[2].max(b[2]),
+                c[3].max(b[3]),
+            ];
+        }
+    }
+    let area: usize = boxes
+        .iter()
+        .filter(|c| c[0] != u32::MAX)
+        .map(|c| (c[2] - c[0] + 2) as usize * (c[3] - c[1] + 2) as usize)
+        .sum();
+    if area > labels.len() {
+        for_each_edge(labels, parent, cols, |a, b| {
+            if region_class[a] == class {
+                f(a, b);
+            }
+            if region_class[b] == class {
+                f(b, a);
+            }
+        });
+        return;
+    }
+    for (r, c) in boxes.iter().enumerate() {
+        if c[0] == u32::MAX {
+            continue;
+        }
+        let (x0, y0) = (
+            c[0].saturating_sub(1) as usize,
+            c[1].saturating_sub(1) as usize,
+        );
+        let (x1, y1) = (c[2] as usize, c[3] as usize);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let la = labels[y * cols + x];
+                let right = (x + 1 < cols).then(|| labels[y * cols + x + 1]);
+                let down = (y + 1 < rows).then(|| labels[(y + 1) * cols + x]);
+                for lb in [right, down].into_iter().flatten() {
+                    if la == lb {
+                        continue;
+                    }
+                    let (a, b) = (parent[la as usize] as usize, parent[lb as usize] as usize);
+                    if a == r && b != r {
+                        f(r, b);
+                    } else if b == r && a != r {
+                        f(r, a);
+                    }
                 }
             }
         }
@@ -143,9 +227,10 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
         cells,
         region_class,
         votes,
-        cell_root,
         neighbours,
         roots,
+        leaf_box,
+        boxes,
         ..
     } = s;
     // 1–3: the frame's statistics
@@ -179,7 +264,6 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     // highlights: small near-white regions brighter than the median and
     // than what surrounds them are treated as clipped (step 5)
     const CANDIDATE: u8 = 3;
-    let mut edges_known = false;
     if p.highlight_ratio > 0.0 {
         let total: f32 = roots.iter().map(|&i| regions[i as usize].count).sum();
         let mut any = false;
@@ -195,21 +279,21 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
             }
         }
         if any {
-            cell_root.clear();
-            cell_root.extend(labels.iter().map(|&l| parent[l as usize]));
-            edges_known = true;
             neighbours.clear();
             neighbours.resize(regions.len(), [0.0, 0.0]);
-            let mut visit = |a: usize, b: usize| {
-                if region_class[a] == CANDIDATE {
-                    neighbours[a][0] += regions[b].lum;
-                    neighbours[a][1] += 1.0;
-                }
-            };
-            for_each_edge(cell_root, cols, |a, b| {
-                visit(a, b);
-                visit(b, a);
-            });
+            edges_of_class(
+                labels,
+                parent,
+                cols,
+                leaf_box,
+                boxes,
+                region_class,
+                CANDIDATE,
+                |r, other| {
+                    neighbours[r][0] += regions[other].lum;
+                    neighbours[r][1] += 1.0;
+                },
+            );
             for &i in roots.iter() {
                 let i = i as usize;
                 if region_class[i] == CANDIDATE {
@@ -335,21 +419,22 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     // 5: clipped regions and highlights take their neighbours' class, by
     // shared cell edges
     if roots.iter().any(|&i| region_class[i as usize] == CLIPPED) {
-        if !edges_known {
-            cell_root.clear();
-            cell_root.extend(labels.iter().map(|&l| parent[l as usize]));
-        }
         votes.clear();
         votes.resize(regions.len(), [0, 0]);
-        let mut vote = |a: usize, b: usize| {
-            if region_class[a] == CLIPPED && region_class[b] != CLIPPED {
-                votes[a][usize::from(instrument[b])] += 1;
-            }
-        };
-        for_each_edge(cell_root, cols, |a, b| {
-            vote(a, b);
-            vote(b, a);
-        });
+        edges_of_class(
+            labels,
+            parent,
+            cols,
+            leaf_box,
+            boxes,
+            region_class,
+            CLIPPED,
+            |r, other| {
+                if region_class[other] != CLIPPED {
+                    votes[r][usize::from(instrument[other])] += 1;
+                }
+            },
+        );
         for &i in roots.iter() {
             let i = i as usize;
             if region_class[i] == CLIPPED {
@@ -366,5 +451,110 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
     Classes {
         instrument: found,
         tissue,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// Every edge between a region of the class and another, counted by
+    /// brute force over the grid.
+    fn brute(labels: &[u32], parent: &[u32], cols: usize, class_of: &[u8], class: u8) -> Vec<u32> {
+        let n = class_of.len();
+        let mut count = vec![0u32; n * n];
+        let rows = labels.len() / cols;
+        for y in 0..rows {
+            for x in 0..cols {
+                let a = parent[labels[y * cols + x] as usize] as usize;
+                let mut pair = |b: usize| {
+                    if a != b {
+                        if class_of[a] == class {
+                            count[a * n + b] += 1;
+                        }
+                        if class_of[b] == class {
+                            count[b * n + a] += 1;
+                        }
+                    }
+                };
+                if x + 1 < cols {
+                    pair(parent[labels[y * cols + x + 1] as usize] as usize);
+                }
+                if y + 1 < rows {
+                    pair(parent[labels[(y + 1) * cols + x] as usize] as usize);
+                }
+            }
+        }
+        count
+    }
+
+    #[test]
+    fn walking_boxes_finds_the_edges_the_whole_grid_has() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for (cols, rows, roots, small) in [(17, 11, 6, true), (17, 11, 6, false), (40, 3, 9, true)]
+        {
+            // one leaf a cell; leaves grouped into regions: blobs around a
+            // few seeds when `small` (the box walk), else scattered (the
+            // grid walk, the boxes adding up to more than the grid)
+            let n = cols * rows;
+            let seeds: Vec<(usize, usize)> = (0..roots)
+                .map(|_| (rng.random_range(0..cols), rng.random_range(0..rows)))
+                .collect();
+            let region: Vec<usize> = (0..n)
+                .map(|i| {
+                    let (x, y) = (i % cols, i / cols);
+                    if small {
+                        seeds
+                            .iter()
+                            .position(|&(sx, sy)| sx.abs_diff(x) <= 2 && sy.abs_diff(y) <= 1)
+                            .unwrap_or(roots)
+                    } else {
+                        rng.random_range(0..=roots)
+                    }
+                })
+                .collect();
+            // each region's root: its first leaf
+            let mut first = vec![usize::MAX; roots + 1];
+            for (i, &r) in region.iter().enumerate() {
+                if first[r] == usize::MAX {
+                    first[r] = i;
+                }
+            }
+            let parent: Vec<u32> = region.iter().map(|&r| first[r] as u32).collect();
+            let labels: Vec<u32> = (0..n as u32).collect();
+            let leaf_box: Vec<[u32; 4]> = (0..n)
+                .map(|i| {
+                    let (x, y) = ((i % cols) as u32, (i / cols) as u32);
+                    [x, y, x, y]
+                })
+                .collect();
+            let mut class_of = vec![0u8; n];
+            for (r, &leaf) in first.iter().enumerate() {
+                if leaf != usize::MAX {
+                    class_of[leaf] = if r < roots && r % 2 == 0 { 3 } else { 1 };
+                }
+            }
+            let mut got = vec![0u32; n * n];
+            let mut boxes = Vec::new();
+            edges_of_class(
+                &labels,
+                &parent,
+                cols,
+                &leaf_box,
+                &mut boxes,
+                &class_of,
+                3,
+                |r, o| {
+                    got[r * n + o] += 1;
+                },
+            );
+            assert_eq!(
+                got,
+                brute(&labels, &parent, cols, &class_of, 3),
+                "{cols}×{rows} small {small}"
+            );
+            assert!(got.iter().any(|&c| c > 0));
+        }
     }
 }

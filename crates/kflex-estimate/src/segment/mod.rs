@@ -254,12 +254,14 @@ struct Scratch {
     region_class: Vec<u8>,
     /// Per clipped region: cell edges shared with tissue and with instrument.
     votes: Vec<[u32; 2]>,
-    /// Per cell: the root of its region (for the clipped regions' vote).
-    cell_root: Vec<u32>,
     /// Per region: summed brightness of the regions across its cell edges, and the edges.
     neighbours: Vec<[f32; 2]>,
     /// The merged regions (roots of `parent`).
     roots: Vec<u32>,
+    /// Per leaf: its cells' box `[x0, y0, x1, y1]`, inclusive.
+    leaf_box: Vec<[u32; 4]>,
+    /// Per region: the box of its cells (for the regions whose edges are walked).
+    boxes: Vec<[u32; 4]>,
     cells: Vec<u8>,
     seen: Vec<bool>,
     flood: Vec<usize>,

@@ -65,8 +65,10 @@ pub(super) fn split(s: &mut Scratch, depth: usize, rw: usize, rh: usize, p: Segm
     s.neighbours.reserve(cols * rows);
     s.roots.clear();
     s.roots.reserve(cols * rows);
-    s.cell_root.clear();
-    s.cell_root.reserve(cols * rows);
+    s.leaf_box.clear();
+    s.leaf_box.reserve(cols * rows);
+    s.boxes.clear();
+    s.boxes.reserve(cols * rows);
     s.stack.clear();
     s.stack.reserve(3 * depth + 1);
     s.stack.push((depth - 1, 0, 0));
@@ -90,6 +92,8 @@ pub(super) fn split(s: &mut Scratch, depth: usize, rw: usize, rh: usize, p: Segm
             let count = ((2 * x1).min(rw) - 2 * x0) * ((2 * y1).min(rh) - 2 * y0);
             let sum = [l.sum[0][i], l.sum[1][i], l.sum[2][i]];
             s.regions.push(Region::from_feature_sums(sum, count));
+            s.leaf_box
+                .push([x0 as u32, y0 as u32, (x1 - 1) as u32, (y1 - 1) as u32]);
         } else {
             let below = &s.levels[level - 1];
             for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
