@@ -96,11 +96,11 @@ def test_kbjae_refuses_bad_arrays(kbjae_path: Path) -> None:
 # ---- model files ---------------------------------------------------------------
 
 
-def test_a_missing_model_is_an_os_error_naming_it(tmp_path: Path) -> None:
+def test_a_missing_model_is_a_file_not_found_error_naming_it(tmp_path: Path) -> None:
     missing = tmp_path / "nothing.onnx"
-    with pytest.raises(OSError, match="nothing.onnx"):
+    with pytest.raises(FileNotFoundError, match="nothing.onnx"):
         kflex.Kbjae.load(missing)
-    with pytest.raises(OSError, match="nothing.onnx"):
+    with pytest.raises(FileNotFoundError, match="nothing.onnx"):
         kflex.Scnn.load(str(missing))
 
 
@@ -112,7 +112,7 @@ def test_a_model_its_card_does_not_describe_is_refused(kbjae_path: Path, tmp_pat
     with pytest.raises(ValueError, match="00ff"):
         kflex.Kbjae.load(model)
     (tmp_path / "kbjae.card.json").write_text("not json")
-    with pytest.raises(OSError, match="card"):
+    with pytest.raises(ValueError, match="card"):
         kflex.Kbjae.load(model)
     # the card the tool writes is right
     card = json.loads(kbjae_path.with_suffix(".card.json").read_text())
@@ -342,7 +342,7 @@ def test_ibjae_refuses_a_database_from_another_scnn(models, paper_db) -> None:
     with pytest.raises(ValueError):
         kflex.Ibjae(models / "scnn_test.onnx", [])
     bare = kflex.FeatureIndex.build(paper_db.features, paper_db.theta_deg)
-    with pytest.raises(OSError, match="metadata"):
+    with pytest.raises(ValueError, match="metadata"):
         kflex.Ibjae(models / "scnn_test.onnx", [bare])
     # the database given is copied, and stays usable
     assert len(paper_db) == 51

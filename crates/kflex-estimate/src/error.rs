@@ -56,7 +56,8 @@ pub enum EstimateError {
         /// What ONNX Runtime said.
         message: String,
     },
-    /// A model or model-card file that cannot be read or understood.
+    /// A model card, or a feature database's metadata, that cannot be
+    /// understood (a file that cannot be read is [`EstimateError::Io`]).
     #[error("{path}: {message}")]
     ModelFile {
         /// The file.
@@ -162,7 +163,7 @@ impl EstimateError {
 
 impl EstimateError {
     /// An [`EstimateError::Io`] for `path` from `err`.
-    #[cfg(feature = "index")]
+    #[cfg(any(feature = "index", feature = "onnx"))]
     pub(crate) fn io(path: &std::path::Path, err: &std::io::Error) -> Self {
         Self::Io {
             path: path.to_path_buf(),

@@ -229,10 +229,7 @@ fn card_sha256(model: &Path) -> Result<Option<String>> {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => {
-            return Err(EstimateError::ModelFile {
-                path: card.display().to_string(),
-                message: e.to_string(),
-            });
+            return Err(EstimateError::io(&card, &e));
         }
     };
     let value: serde_json::Value =
@@ -257,7 +254,9 @@ impl OnnxModel {
     /// as `input` and `output` say.
     ///
     /// # Errors
-    /// [`EstimateError::ModelFile`] for a missing or unreadable file or card;
+    /// [`EstimateError::Io`] (with the io error's kind) for a file or card
+    /// that cannot be read; [`EstimateError::ModelFile`] for a card that is
+    /// not a model card;
     /// [`EstimateError::ModelChecksum`] when the card records another file;
     /// [`EstimateError::Onnx`] when ONNX Runtime refuses the file (corrupt,
     /// truncated, not ONNX) or is missing ([`EstimateError::OnnxRuntimeMissing`]);
@@ -270,10 +269,7 @@ impl OnnxModel {
         threads: usize,
     ) -> Result<Self> {
         let shown = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|e| EstimateError::ModelFile {
-            path: shown.clone(),
-            message: e.to_string(),
-        })?;
+        let bytes = std::fs::read(path).map_err(|e| EstimateError::io(path, &e))?;
         let sha256 = sha256_hex(&bytes);
         if let Some(card) = card_sha256(path)?
             && card != sha256

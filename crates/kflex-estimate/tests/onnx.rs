@@ -158,9 +158,13 @@ fn a_model_that_is_not_what_its_card_says_is_refused() {
 #[test]
 fn missing_truncated_and_corrupt_models_are_errors_not_panics() {
     let dir = scratch("bad");
+    // a missing file keeps the operating system's kind (Python: FileNotFoundError)
     assert!(matches!(
         Kbjae::load(&dir.join("nothing.onnx")),
-        Err(EstimateError::ModelFile { .. })
+        Err(EstimateError::Io {
+            kind: std::io::ErrorKind::NotFound,
+            ..
+        })
     ));
     let bytes = std::fs::read(data("kbjae_test.onnx")).unwrap();
     let cases: [(&str, Vec<u8>); 4] = [

@@ -131,8 +131,8 @@ fn classify_estimate(e: &EstimateError) -> Kind {
         EstimateError::NoInstrument { .. } => Kind::NoInstrument,
         EstimateError::ImageSize { .. } | EstimateError::Length { .. } => Kind::Type,
         EstimateError::Io { kind, .. } => Kind::Os(*kind),
-        EstimateError::ModelFile { .. } => Kind::Os(ErrorKind::Other),
-        EstimateError::ModelChecksum { .. }
+        EstimateError::ModelFile { .. }
+        | EstimateError::ModelChecksum { .. }
         | EstimateError::ModelMismatch { .. }
         | EstimateError::IndexCorrupt { .. }
         | EstimateError::IndexVersion { .. }
@@ -364,10 +364,10 @@ mod tests {
             ),
             (
                 EstimateError::ModelFile {
-                    path: "m.onnx".into(),
-                    message: "gone".into(),
+                    path: "m.card.json".into(),
+                    message: "not a model card".into(),
                 },
-                Kind::Os(ErrorKind::Other),
+                Kind::Value,
             ),
             (
                 EstimateError::ModelChecksum {

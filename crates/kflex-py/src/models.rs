@@ -26,9 +26,10 @@ pub struct PyKbjae {
 #[pymethods]
 impl PyKbjae {
     /// Loads KBJAE's ONNX model (input `theta_and_rate` [N, 2], output
-    /// `theta_error` [N, 1]). Raises `OSError` for a missing or unreadable
-    /// file or card, `ValueError` when the card beside it
-    /// (`NAME.card.json`) records another SHA-256 or the model's input or
+    /// `theta_error` [N, 1]). Raises `OSError` for a file or card that
+    /// cannot be read (`FileNotFoundError` for a missing one), `ValueError`
+    /// when the card beside it (`NAME.card.json`) is not a model card,
+    /// records another SHA-256, or the model's input or
     /// output is not KBJAE's, `RuntimeError` when ONNX Runtime is missing
     /// or refuses the file.
     #[staticmethod]

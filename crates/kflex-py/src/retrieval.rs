@@ -366,8 +366,8 @@ impl PyIbjae {
     /// intra-op threads) over `databases` (`FeatureIndex`es as
     /// `build_band_database` makes them, or loaded from their files; each is
     /// copied) and the segmentation thresholds `segment`. Raises
-    /// `ValueError` when a database was embedded by another SCNN or there
-    /// are none, `OSError` for a database without the metadata IBJAE needs,
+    /// `ValueError` when a database was embedded by another SCNN, there are
+    /// none, or one lacks the metadata IBJAE needs (or has it out of range),
     /// and as `Scnn.load`.
     #[new]
     #[pyo3(signature = (scnn, databases, segment = None, threads = 1))]
