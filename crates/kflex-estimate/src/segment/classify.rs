@@ -87,22 +87,27 @@ fn metal_side(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], share: f32) -> bo
 }
 
 /// Calls `f(a, b)` for the merged regions on either side of every cell
-/// edge (right and down neighbours) where they differ: `labels` are the
-/// cells' leaves, `parent` each leaf's region (fully compressed). Cells of
-/// one leaf are skipped without looking their region up.
+/// edge (right and down neighbours) leaving a cell of `window` (`[x0, y0,
+/// x1, y1]`, inclusive) where they differ: `labels` are the cells' leaves,
+/// `parent` each leaf's region (fully compressed). Cells of one leaf are
+/// skipped without looking their region up.
 #[inline(always)]
-fn for_each_edge(labels: &[u32], parent: &[u32], cols: usize, mut f: impl FnMut(usize, usize)) {
-    if cols == 0 {
-        return;
-    }
-    let mut rows = labels.chunks_exact(cols).peekable();
-    while let Some(row) = rows.next() {
-        let below = rows.peek().copied().unwrap_or(&[]);
-        for (x, &la) in row.iter().enumerate() {
-            // right, then down: only across a leaf's edge is the region looked up
-            for lb in [row.get(x + 1), below.get(x)].into_iter().flatten() {
-                if la != *lb {
-                    let (a, b) = (parent[la as usize], parent[*lb as usize]);
+fn for_each_edge(
+    labels: &[u32],
+    parent: &[u32],
+    cols: usize,
+    [x0, y0, x1, y1]: [usize; 4],
+    mut f: impl FnMut(usize, usize),
+) {
+    let rows = labels.len() / cols;
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let la = labels[y * cols + x];
+            let right = (x + 1 < cols).then(|| labels[y * cols + x + 1]);
+            let down = (y + 1 < rows).then(|| labels[(y + 1) * cols + x]);
+            for lb in [right, down].into_iter().flatten() {
+                if la != lb {
+                    let (a, b) = (parent[la as usize], parent[lb as usize]);
                     if a != b {
                         f(a as usize, b as usize);
                     }
@@ -129,10 +134,9 @@ fn edges_of_class(
     class: u8,
     mut f: impl FnMut(usize, usize),
 ) {
-    if cols == 0 {
+    if cols == 0 || labels.is_empty() {
         return;
     }
-    let rows = labels.len() / cols;
     boxes.clear();
     boxes.resize(region_class.len(), [u32::MAX, u32::MAX, 0, 0]);
     for (leaf, b) in leaf_box.iter().enumerate() {
@@ -153,7 +157,8 @@ fn edges_of_class(
         .map(|c| (c[2] - c[0] + 2) as usize * (c[3] - c[1] + 2) as usize)
         .sum();
     if area > labels.len() {
-        for_each_edge(labels, parent, cols, |a, b| {
+        let whole = [0, 0, cols - 1, labels.len() / cols - 1];
+        for_each_edge(labels, parent, cols, whole, |a, b| {
             if region_class[a] == class {
                 f(a, b);
             }
@@ -167,29 +172,19 @@ fn edges_of_class(
         if c[0] == u32::MAX {
             continue;
         }
-        let (x0, y0) = (
+        let window = [
             c[0].saturating_sub(1) as usize,
             c[1].saturating_sub(1) as usize,
-        );
-        let (x1, y1) = (c[2] as usize, c[3] as usize);
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                let la = labels[y * cols + x];
-                let right = (x + 1 < cols).then(|| labels[y * cols + x + 1]);
-                let down = (y + 1 < rows).then(|| labels[(y + 1) * cols + x]);
-                for lb in [right, down].into_iter().flatten() {
-                    if la == lb {
-                        continue;
-                    }
-                    let (a, b) = (parent[la as usize] as usize, parent[lb as usize] as usize);
-                    if a == r && b != r {
-                        f(r, b);
-                    } else if b == r && a != r {
-                        f(r, a);
-                    }
-                }
+            c[2] as usize,
+            c[3] as usize,
+        ];
+        for_each_edge(labels, parent, cols, window, |a, b| {
+            if a == r {
+                f(r, b);
+            } else if b == r {
+                f(r, a);
             }
-        }
+        });
     }
 }
 
