@@ -139,11 +139,12 @@ impl BandDatabase {
     /// ranges whose lower end is not above their upper; positive grid steps
     /// and distance per degree).
     pub fn from_index(index: FeatureIndex) -> Result<Self> {
+        let invalid = |key: &str, message: &str| EstimateError::ModelFile {
+            path: format!("feature database metadata {key:?}"),
+            message: message.into(),
+        };
         let numbers = |key: &str, n: usize| -> Result<Vec<f64>> {
-            let bad = || EstimateError::ModelFile {
-                path: format!("feature database metadata {key:?}"),
-                message: format!("missing or not {n} comma-separated numbers"),
-            };
+            let bad = || invalid(key, &format!("missing or not {n} comma-separated numbers"));
             let text = index.metadata().get(key).ok_or_else(bad)?;
             let v: Vec<f64> = text
                 .split(',')
@@ -155,10 +156,6 @@ impl BandDatabase {
             } else {
                 Err(bad())
             }
-        };
-        let invalid = |key: &str, message: &str| EstimateError::ModelFile {
-            path: format!("feature database metadata {key:?}"),
-            message: message.into(),
         };
         let roi = numbers(keys::ROI, 4)?;
         // pixels: whole, not negative, a region of at least one pixel

@@ -97,9 +97,9 @@ def _name_onnxruntime() -> None:
     from kflex._kflex import _prefer_onnxruntime_package
 
     spec = importlib.util.find_spec("onnxruntime")
-    for location in (spec.submodule_search_locations or []) if spec else []:
+    location = next(iter(spec.submodule_search_locations or []), None) if spec else None
+    if location is not None:
         _prefer_onnxruntime_package(location)
-        break
 
 
 _name_onnxruntime()
