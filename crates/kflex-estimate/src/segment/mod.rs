@@ -445,21 +445,34 @@ mod tests {
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
 
-    /// A smooth gradient with Gaussian noise of `sigma` (on [0, 1]) added.
-    fn noisy(width: usize, height: usize, sigma: f64, seed: u64) -> Vec<u8> {
+    /// An 8-bit frame of `colour(x, y)` (0–255) with Gaussian noise of
+    /// `sigma` (on [0, 1]) added to every channel.
+    fn paint(
+        width: usize,
+        height: usize,
+        sigma: f64,
+        seed: u64,
+        colour: impl Fn(usize, usize) -> [f64; 3],
+    ) -> Vec<u8> {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let normal = Normal::new(0.0, sigma * 255.0).unwrap();
         let mut rgb = Vec::with_capacity(3 * width * height);
         for y in 0..height {
             for x in 0..width {
-                let base = 60.0 + 120.0 * (x + y) as f64 / (width + height) as f64;
-                for _ in 0..3 {
-                    let v: f64 = base + normal.sample(&mut rng);
+                for c in colour(x, y) {
+                    let v: f64 = c + normal.sample(&mut rng);
                     rgb.push(v.round().clamp(0.0, 255.0) as u8);
                 }
             }
         }
         rgb
+    }
+
+    /// A smooth gradient with Gaussian noise of `sigma` (on [0, 1]) added.
+    fn noisy(width: usize, height: usize, sigma: f64, seed: u64) -> Vec<u8> {
+        paint(width, height, sigma, seed, |x, y| {
+            [60.0 + 120.0 * (x + y) as f64 / (width + height) as f64; 3]
+        })
     }
 
     #[test]
@@ -495,24 +508,15 @@ mod tests {
         // frame's darkness scales down: both give the same mask
         let (w, h) = (128usize, 128usize);
         let frame = |gain: f64| -> Vec<u8> {
-            let mut rgb = noisy(w, h, 0.01, 9);
-            for y in 0..h {
-                for x in 0..w {
-                    let metal = (x / 32) % 2 == 0 && (y / 32) % 2 == 0;
-                    let c: [f64; 3] = if metal {
-                        [100.0, 101.0, 106.0]
-                    } else {
-                        [118.0, 88.0, 84.0]
-                    };
-                    let base = 60.0 + 120.0 * (x + y) as f64 / (w + h) as f64;
-                    let pixel = &mut rgb[3 * (y * w + x)..][..3];
-                    for (v, colour) in pixel.iter_mut().zip(c) {
-                        let noise = f64::from(*v) - base;
-                        *v = ((colour + noise) * gain).round().clamp(0.0, 255.0) as u8;
-                    }
-                }
-            }
-            rgb
+            paint(w, h, 0.01 * gain, 9, |x, y| {
+                let metal = (x / 32) % 2 == 0 && (y / 32) % 2 == 0;
+                let c: [f64; 3] = if metal {
+                    [100.0, 101.0, 106.0]
+                } else {
+                    [118.0, 88.0, 84.0]
+                };
+                c.map(|v| v * gain)
+            })
         };
         let roi = Roi {
             x0: 0,
