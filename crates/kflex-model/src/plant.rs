@@ -115,8 +115,8 @@ impl PlantConfig {
 
     /// A copy drawn around this one for a repeated experiment: every physical
     /// parameter of the transmission and the joint (friction coefficient,
-    /// wraps, pretension, stiffnesses, backlash, pre-sliding, the contacts'
-    /// stiffness) scaled by its own factor `1 + rel_std · N(0, 1)` (clamped
+    /// wraps, pretension, stiffnesses, backlash, pre-sliding, the sheath's
+    /// path change, the contacts' stiffness) scaled by its own factor `1 + rel_std · N(0, 1)` (clamped
     /// to `[0.5, 1.5]`): unit-to-unit and day-to-day spread. With
     /// `rel_std > 0` the tendons also start from their own seating (friction
     /// states and backlash position drawn uniformly from `[−1, 1]`, see
@@ -150,6 +150,7 @@ impl PlantConfig {
         scale(&mut s.drive_backlash_mm);
         scale(&mut s.backlash_engagement_mm);
         scale(&mut s.presliding_mm);
+        scale(&mut s.sheath_path_mm_per_rad);
         scale(&mut out.joint.contact_stiffness_nmm_per_rad);
         out.sheath.friction_coefficient = out.sheath.friction_coefficient.min(1.0);
         out.sheath.drive_backlash_mm = out.sheath.drive_backlash_mm.min(10.0);
