@@ -1,19 +1,22 @@
 //! The shipped defaults reproduce Table IX's uncompensated row within the
 //! calibration's tolerances: RMSE ±20 % and maximum hysteresis size (the
-//! loop width) ±30 % at 0, 90 and 180 deg; ±25 % and ±40 % at 270 deg —
-//! except the loop width at 180 deg, held to ±35 % (see `WIDTH_TOL`).
+//! loop width) ±30 % at 0, 90 and 180 deg; ±25 % and ±40 % at 270 deg. The
+//! shipped protocol's mean over three perturbed repeats is held to ±35 % at
+//! 180 deg (see `CLI_WIDTH_TOL`).
 
 use kflex_control::OpenLoopGrid;
 
 const RMSE: [f64; 4] = [7.84, 9.95, 16.6, 21.9];
 const WIDTH: [f64; 4] = [9.23, 15.1, 18.3, 18.4];
 const RMSE_TOL: [f64; 4] = [0.20, 0.20, 0.20, 0.25];
-/// The goal is ±30 % at 180 deg too; the plant's loop there is 33 % narrower
-/// than the paper's (CALIBRATION.md, "What is not met"), so this holds it to
-/// where it is rather than hiding the gap.
-const WIDTH_TOL: [f64; 4] = [0.30, 0.30, 0.35, 0.40];
+const WIDTH_TOL: [f64; 4] = [0.30, 0.30, 0.30, 0.40];
+/// The nominal plant's loop at 180 deg is 28.5 % narrower than the paper's;
+/// `kflex-cli run`'s three perturbed repeats (seeds 2020–2022) average 30.5 %
+/// narrower, 0.4 deg below the nominal loop, where the three-repeat mean's
+/// sampling error is 0.8 deg (CALIBRATION.md). The goal is ±30 % there too.
+const CLI_WIDTH_TOL: [f64; 4] = [0.30, 0.30, 0.35, 0.40];
 
-fn check(grid: OpenLoopGrid) {
+fn check(grid: OpenLoopGrid, width_tol: [f64; 4]) {
     let rows = grid.run().unwrap();
     for (i, row) in rows.iter().enumerate() {
         let (r, w) = (row.rmse_deg.mean, row.max_hysteresis_deg.mean);
@@ -24,7 +27,7 @@ fn check(grid: OpenLoopGrid) {
             RMSE[i]
         );
         assert!(
-            (w / WIDTH[i] - 1.0).abs() <= WIDTH_TOL[i],
+            (w / WIDTH[i] - 1.0).abs() <= width_tol[i],
             "sheath {}: width {w:.2} vs paper {}",
             row.sheath_deg,
             WIDTH[i]
@@ -36,23 +39,28 @@ fn check(grid: OpenLoopGrid) {
             .all(|w| w[1].rmse_deg.mean > w[0].rmse_deg.mean)
     );
     // the paper's widths grow too (9.2 to 18.4 deg); the plant's loops are
-    // wider at 90 and 180 deg than at 0 but not at 270 (CALIBRATION.md)
-    assert!(rows[1].max_hysteresis_deg.mean > rows[0].max_hysteresis_deg.mean);
-    assert!(rows[2].max_hysteresis_deg.mean > rows[0].max_hysteresis_deg.mean);
+    // wider at every bend than straight (CALIBRATION.md: they grow up to
+    // about 60 deg, then stay within 10 % of their largest)
+    for k in 1..4 {
+        assert!(rows[k].max_hysteresis_deg.mean > rows[0].max_hysteresis_deg.mean);
+    }
 }
 
 #[test]
 fn nominal_plant_matches_table_ix_none_row() {
-    check(OpenLoopGrid {
-        repeats: 1,
-        spread: 0.0,
-        noise: None,
-        ..OpenLoopGrid::default()
-    });
+    check(
+        OpenLoopGrid {
+            repeats: 1,
+            spread: 0.0,
+            noise: None,
+            ..OpenLoopGrid::default()
+        },
+        WIDTH_TOL,
+    );
 }
 
 #[test]
 fn the_cli_protocol_matches_table_ix_none_row() {
     // what `kflex-cli run` does by default: three repeats with spread and Aurora-like noise
-    check(OpenLoopGrid::default());
+    check(OpenLoopGrid::default(), CLI_WIDTH_TOL);
 }

@@ -83,10 +83,10 @@ fn a_mirrored_command_gives_a_mirrored_response_without_gravity() {
 fn rmse_grows_with_the_bend_and_the_loop_width_saturates() {
     // The goals: RMSE growing at every 15 deg from 0 to 270, the loop width
     // growing up to 180 deg and staying within 10 % of its largest beyond.
-    // Measured (CALIBRATION.md): the RMSE dips by 0.1 % between 30 and 45 deg,
-    // and the width peaks near 70 deg and ends 16 % below its largest at
-    // 270 deg. This test holds the plant to that, so neither gets worse
-    // unnoticed; the gap to the goals is reported, not hidden.
+    // Measured (CALIBRATION.md): the RMSE grows at every step; the width
+    // grows up to about 60 deg (by 12 %), then stays within 5 % of its
+    // largest out to 270 deg, so it does not grow up to 180 deg as the
+    // paper's does (9.2 to 18.3 deg).
     let sheaths: Vec<f64> = (0..=18).map(|k| 15.0 * f64::from(k)).collect();
     let rows = run(OpenLoopGrid {
         sheaths_deg: sheaths,
@@ -95,18 +95,10 @@ fn rmse_grows_with_the_bend_and_the_loop_width_saturates() {
     let rmse: Vec<f64> = rows.iter().map(|r| r.rmse_deg.mean).collect();
     for (k, w) in rmse.windows(2).enumerate() {
         assert!(
-            w[1] > 0.995 * w[0],
-            "RMSE fell by more than 0.5 % from {} deg to {} deg: {rmse:?}",
-            15 * k,
-            15 * (k + 1)
-        );
-    }
-    for (k, w) in rmse.windows(4).enumerate() {
-        assert!(
-            w[3] > w[0],
+            w[1] > w[0],
             "RMSE did not grow from {} deg to {} deg: {rmse:?}",
             15 * k,
-            15 * (k + 3)
+            15 * (k + 1)
         );
     }
     let widths: Vec<f64> = rows.iter().map(|r| r.max_hysteresis_deg.mean).collect();
@@ -122,11 +114,12 @@ fn rmse_grows_with_the_bend_and_the_loop_width_saturates() {
         15 * peak
     );
     assert!(largest > 1.1 * widths[0], "{widths:?}");
-    // ... and then saturates rather than collapsing
+    // ... and then saturates rather than collapsing: from its peak on (the
+    // goal asks it beyond 180 deg) within 10 % of its largest
     for (k, w) in widths.iter().enumerate().skip(peak) {
         assert!(
-            *w >= 0.8 * largest,
-            "loop width {w} at {} deg is more than 20 % below its largest {largest}",
+            *w >= 0.9 * largest,
+            "loop width {w} at {} deg is more than 10 % below its largest {largest}",
             15 * k
         );
     }
