@@ -3,6 +3,8 @@
 //! and on the bend and gripper alone, and the frames wrongly called empty.
 //!
 //! `cargo run --release -p kflex-estimate --example robustness_table`
+//! (with `KFLEX_WORST=1` it also names each condition's worst case, in the
+//! region and on the bend and gripper, for `examples/segment_case.rs`)
 
 #[path = "../tests/matrix/mod.rs"]
 mod matrix;
@@ -39,12 +41,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .chain(Condition::BEYOND.iter().map(|c| (false, *c)))
     {
         let (mut roi, mut distal, mut missed) = (Vec::new(), Vec::new(), 0);
-        let mut worst = None;
+        let (mut worst, mut worst_distal) = (None, None);
         for &case in &cases {
             match bench.score(&mut segmenter, case, condition) {
                 Ok(s) => {
                     if worst.is_none_or(|(w, _)| s.roi < w) {
                         worst = Some((s.roi, case));
+                    }
+                    if let Some(d) = s.distal
+                        && worst_distal.is_none_or(|(w, _)| d < w)
+                    {
+                        worst_distal = Some((d, case));
                     }
                     roi.push(s.roi);
                     distal.extend(s.distal);
@@ -65,10 +72,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             format!("{} (past the goals)", condition.name())
         };
         println!("| {name} | {missed} | {rmin} | {rmed} | {dmin} | {dmed} |");
-        if std::env::var_os("KFLEX_WORST").is_some()
-            && let Some((iou, case)) = worst
-        {
-            eprintln!("  worst {iou:.3}: {case:?}");
+        if std::env::var_os("KFLEX_WORST").is_some() {
+            for (what, w) in [("ROI", worst), ("distal", worst_distal)] {
+                if let Some((iou, case)) = w {
+                    eprintln!("  worst {what} {iou:.3}: {case:?}");
+                }
+            }
         }
     }
     println!();
