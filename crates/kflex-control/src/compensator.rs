@@ -121,7 +121,11 @@ pub enum BacklashTerm {
 }
 
 /// Why a tick held the last command instead of computing a new one.
-#[derive(Debug, Clone, Copy, PartialEq, Error)]
+///
+/// Serialised (for logs) with its kind under `"fault"` and its fields beside
+/// it, e.g. `{"fault": "watchdog", "age_s": 0.3, "timeout_s": 0.25}`.
+#[derive(Debug, Clone, Copy, PartialEq, Error, Serialize)]
+#[serde(tag = "fault", rename_all = "snake_case")]
 #[non_exhaustive]
 pub enum Fault {
     /// θ_d was NaN or infinite.
@@ -171,8 +175,8 @@ impl Terms {
     }
 }
 
-/// One tick's result.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// One tick's result (serialisable, for logs).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CompensatorOutput {
     /// The command θ_c to send, deg: always finite and within the joint limits.
     pub theta_c_deg: f64,

@@ -629,3 +629,39 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn outputs_and_faults_serialise_for_logs() {
+    // what an MCAP channel records per tick: the command, the terms and the fault by kind
+    let dt = 1.0 / 64.0;
+    let mut comp = compensator(CompensatorConfig {
+        watchdog_timeout_s: 0.25,
+        ..free()
+    });
+    let ok = comp.step(10.0, Some(8.0), dt);
+    let v = serde_json::to_value(ok).unwrap();
+    assert_eq!(v["theta_c_deg"], ok.theta_c_deg);
+    assert_eq!(v["terms"]["p_deg"], ok.terms.p_deg);
+    assert!(v["fault"].is_null());
+    let tripped = (0..40)
+        .map(|_| comp.step(10.0, None, dt))
+        .find(|o| o.fault.is_some())
+        .unwrap();
+    let v = serde_json::to_value(tripped).unwrap();
+    assert_eq!(v["fault"]["fault"], "watchdog");
+    assert_eq!(v["fault"]["timeout_s"], 0.25);
+    assert_eq!(v["fault"]["age_s"], tripped.estimate_age_s);
+    // a bad dt names the quantity and its bounds; an infinite bound is null in JSON
+    let bad = serde_json::to_value(comp.step(10.0, Some(9.0), -1.0)).unwrap();
+    assert_eq!(bad["fault"]["fault"], "invalid_dt");
+    assert_eq!(bad["fault"]["name"], "dt_s");
+    assert_eq!(bad["fault"]["value"], -1.0);
+    assert_eq!(bad["fault"]["bounds"]["min"], 0.0);
+    assert_eq!(bad["fault"]["bounds"]["min_inclusive"], false);
+    let nan = serde_json::to_value(comp.step(10.0, Some(f64::NAN), dt)).unwrap();
+    assert_eq!(nan["fault"]["fault"], "non_finite_estimate");
+    assert!(
+        nan["fault"]["value"].is_null(),
+        "NaN is null in JSON: {nan}"
+    );
+}

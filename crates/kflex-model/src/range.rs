@@ -9,6 +9,7 @@
 
 use std::fmt;
 
+use serde::Serialize;
 use thiserror::Error;
 
 /// An interval of valid values; each end open or closed, either end possibly infinite.
@@ -24,7 +25,8 @@ use thiserror::Error;
 ///     "friction_coefficient = 2.5 is out of range: must be in [0, 2]"
 /// );
 /// ```
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Serialised (for logs) as its four fields; an infinite end is `null` in JSON.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Bounds {
     /// Lower end (may be `-inf`).
     pub min: f64,
@@ -125,7 +127,8 @@ impl fmt::Display for Bounds {
 }
 
 /// A value outside its valid range. `Copy`; building it allocates nothing.
-#[derive(Debug, Clone, Copy, PartialEq, Error)]
+/// Serialised (for logs) as `name`, `value` and `bounds`.
+#[derive(Debug, Clone, Copy, PartialEq, Error, Serialize)]
 #[error("{name} = {} is out of range: must be in {bounds}", Num(*.value))]
 pub struct RangeError {
     /// The quantity, as its field or argument is named (unit in the name where it has one).
