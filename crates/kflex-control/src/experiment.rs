@@ -105,6 +105,28 @@ impl OpenLoopScenario {
         Ok(self.trajectory.sampler()?)
     }
 
+    /// The pre-roll's commands, one per tick: a raised cosine from `from_deg`
+    /// (where the plant is) to `to_deg` (θ_d(0)) over `pre_roll_s`, then held
+    /// as long again.
+    pub(crate) fn pre_roll(&self, from_deg: f64, to_deg: f64) -> impl Iterator<Item = f64> {
+        let ramp_ticks = (self.pre_roll_s / self.dt_s).round() as usize;
+        (1..=2 * ramp_ticks).map(move |k| {
+            let u = (k as f64 / ramp_ticks as f64).min(1.0);
+            let w = 0.5 * (1.0 - (std::f64::consts::PI * u).cos());
+            from_deg + (to_deg - from_deg) * w
+        })
+    }
+
+    /// The number of evaluated ticks: `periods` periods of `dt_s`.
+    pub(crate) fn evaluated_ticks(&self) -> usize {
+        (self.periods * self.period_s / self.dt_s).round() as usize
+    }
+
+    /// Checks the settings and prepares the trajectory (before anything moves).
+    pub(crate) fn sampler(&self) -> Result<TrajectorySampler> {
+        self.validate()
+    }
+
     /// Drives `plant` (from its current state) through the scenario and records the evaluated part.
     ///
     /// # Errors
@@ -127,15 +149,10 @@ impl OpenLoopScenario {
             theta_c_deg,
             translation_mm: self.translation_mm,
         };
-        // pre-roll: raised cosine from the plant's angle to θ_d(0), then hold
-        let from = plant.state().command.theta_c_deg;
-        let ramp_ticks = (self.pre_roll_s / self.dt_s).round() as usize;
-        for k in 1..=2 * ramp_ticks {
-            let u = (k as f64 / ramp_ticks as f64).min(1.0);
-            let w = 0.5 * (1.0 - (std::f64::consts::PI * u).cos());
-            plant.step(command(from + (start - from) * w), self.dt_s)?;
+        for theta in self.pre_roll(plant.state().command.theta_c_deg, start) {
+            plant.step(command(theta), self.dt_s)?;
         }
-        let n = (self.periods * self.period_s / self.dt_s).round() as usize;
+        let n = self.evaluated_ticks();
         let mut trace = Trace::default();
         for v in [
             &mut trace.time_s,

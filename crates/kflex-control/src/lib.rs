@@ -29,12 +29,17 @@
 //!   off and compiles none of rapier3d, parry3d or image.
 #![warn(missing_docs)]
 
+mod closed_loop;
 mod compensator;
 mod dataset;
 mod error;
 mod experiment;
 mod metrics;
 
+pub use closed_loop::{
+    AngleEstimator, CameraFrame, CameraTiming, ClosedLoopScenario, ClosedLoopTrace, EstimatorTick,
+    FrameCounts, FrameRequest, NoisyTruth,
+};
 pub use compensator::{
     BacklashTerm, Compensator, CompensatorConfig, CompensatorOutput, Fault, Terms,
 };

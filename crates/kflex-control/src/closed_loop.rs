@@ -1,0 +1,497 @@
+//! The closed loop: θ_d → compensator → plant → camera → estimator → θ̂ →
+//! compensator, on the simulated robot.
+//!
+//! One control tick `k` (time `t_k = k·dt`) of [`ClosedLoopScenario::run`]:
+//!
+//! 1. θ_d(t_k) from the scenario's trajectory (the pre-roll's ramp first);
+//! 2. the compensator turns θ_d and the last estimate θ̂ into θ_c (without a
+//!    compensator, θ_c = θ_d);
+//! 3. the plant answers θ_c ([`Plant::step`]);
+//! 4. the camera captures when a frame period has passed
+//!    ([`CameraTiming::rate_hz`]): the as-built instrument at the plant's
+//!    new angle ([`BuildTolerances`]: the robot's own instrument and camera,
+//!    not the nominal ones an estimator's database is made from), rendered
+//!    in the window the estimator asks for; the frame is lost with
+//!    [`CameraTiming::drop_probability`], else it arrives
+//!    [`CameraTiming::latency_s`] later;
+//! 5. the estimator steps with the command the plant answered and the newest
+//!    frame that has arrived (older ones that arrived in the same tick are
+//!    stale and skipped), and gives θ̂ for the next tick.
+//!
+//! The estimator is anything that implements [`AngleEstimator`]: the
+//! paper's estimators (KBJAE, IBJAE, LBHJAE in `kflex-estimate`, with its
+//! `onnx` and `index` features) or a stand-in such as [`NoisyTruth`].
+
+use std::collections::VecDeque;
+
+use kflex_model::{
+    Bounds, BuildTolerances, BuiltInstrument, Camera, Command, Frame, FrameParams, Instrument,
+    InstrumentShape, Plant, Roi, SceneRenderer,
+};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::compensator::{Compensator, CompensatorConfig};
+use crate::error::Result;
+use crate::experiment::{OpenLoopScenario, Trace};
+use crate::metrics;
+
+/// When the camera takes frames and when they reach the estimator.
+///
+/// The defaults: 30 frames per second (the rate of the USB endoscope
+/// class the paper mounts, and of its ROS pipeline), delivered at once and
+/// never lost; latency and losses are there to try what a real pipeline
+/// does to the loop.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CameraTiming {
+    /// Frames per second, in `(0, 1000]`. A frame is captured at the end of
+    /// the first control tick at or after each multiple of `1/rate_hz` s.
+    pub rate_hz: f64,
+    /// Capture to arrival at the estimator, s, in `[0, 10]`: the frame
+    /// arrives at the first tick at or after its capture time plus this.
+    pub latency_s: f64,
+    /// Chance that a frame never arrives, in `[0, 1]`.
+    pub drop_probability: f64,
+}
+
+impl Default for CameraTiming {
+    fn default() -> Self {
+        Self {
+            rate_hz: 30.0,
+            latency_s: 0.0,
+            drop_probability: 0.0,
+        }
+    }
+}
+
+impl CameraTiming {
+    /// Checks the settings.
+    ///
+    /// # Errors
+    /// [`crate::ControlError::OutOfRange`] naming `camera.rate_hz`,
+    /// `camera.latency_s` or `camera.drop_probability` (NaN is out of every
+    /// range).
+    pub fn validate(&self) -> Result<()> {
+        Bounds::open_closed(0.0, 1000.0).check("camera.rate_hz", self.rate_hz)?;
+        Bounds::closed(0.0, 10.0).check("camera.latency_s", self.latency_s)?;
+        Bounds::closed(0.0, 1.0).check("camera.drop_probability", self.drop_probability)?;
+        Ok(())
+    }
+}
+
+/// What an estimator wants from the camera.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameRequest {
+    /// No frames (a kinematic estimator): nothing is rendered.
+    None,
+    /// The frames' timing and ground truth, not their pixels (a stand-in
+    /// estimator): nothing is rendered, but frames are captured, delayed and
+    /// dropped as the camera's would be.
+    Timing,
+    /// The pixels of this window of the camera's image.
+    Pixels(Roi),
+}
+
+/// A frame as it reaches the estimator.
+#[derive(Debug, Clone, Copy)]
+pub struct CameraFrame<'a> {
+    /// The rendered pixels of `window` (its width and height are the
+    /// window's); `None` where the estimator asked for [`FrameRequest::Timing`].
+    pub image: Option<&'a Frame>,
+    /// Where the image's pixels lie in the camera's full image.
+    pub window: Option<Roi>,
+    /// When the frame was captured, s since the run's start.
+    pub captured_s: f64,
+    /// The command the plant had answered at capture (its translation is
+    /// the pose's).
+    pub command: Command,
+    /// The plant's true angle at capture, deg: ground truth, for scoring and
+    /// for stand-in estimators; an estimator of the real robot cannot know it.
+    pub truth_theta_a_deg: f64,
+}
+
+/// One control tick as the estimator sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct EstimatorTick<'a> {
+    /// Time since the run's start (pre-roll included), s.
+    pub time_s: f64,
+    /// Since the last tick, s.
+    pub dt_s: f64,
+    /// The command the plant answered this tick.
+    pub command: Command,
+    /// The newest frame that arrived this tick, if any.
+    pub frame: Option<CameraFrame<'a>>,
+}
+
+/// A joint-angle estimator in the closed loop: stepped once per control
+/// tick, after the plant.
+pub trait AngleEstimator {
+    /// What it wants from the camera for a frame captured now, with the
+    /// plant at `command` (e.g. IBJAE: the working region of the band it
+    /// would read).
+    fn frame_request(&self, command: Command) -> FrameRequest;
+
+    /// One tick: θ̂ in deg for the compensator's next tick, or `None` where
+    /// the estimator has none yet (the compensator then counts toward its
+    /// watchdog).
+    ///
+    /// # Errors
+    /// The estimator's own faults; the run stops with them.
+    fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>>;
+
+    /// Back to the state before the first tick.
+    fn reset(&mut self);
+}
+
+/// A stand-in for a camera-based estimator: the plant's true angle at each
+/// frame's capture plus Gaussian noise of `sigma_deg`, held between frames.
+/// No pixels are rendered. It measures what the loop's timing and a
+/// sensor's noise do to compensation, apart from any estimator's errors.
+#[derive(Debug, Clone)]
+pub struct NoisyTruth {
+    sigma_deg: f64,
+    rng: ChaCha8Rng,
+    seed: u64,
+    last: Option<f64>,
+}
+
+impl NoisyTruth {
+    /// Noise of `sigma_deg` (in `[0, 90]`), drawn from `seed`.
+    ///
+    /// # Errors
+    /// [`crate::ControlError::OutOfRange`] naming `sigma_deg`.
+    pub fn new(sigma_deg: f64, seed: u64) -> Result<Self> {
+        Bounds::closed(0.0, 90.0).check("sigma_deg", sigma_deg)?;
+        Ok(Self {
+            sigma_deg,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            seed,
+            last: None,
+        })
+    }
+}
+
+impl AngleEstimator for NoisyTruth {
+    fn frame_request(&self, _command: Command) -> FrameRequest {
+        FrameRequest::Timing
+    }
+
+    fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>> {
+        if let Some(frame) = tick.frame {
+            self.last = Some(frame.truth_theta_a_deg + self.sigma_deg * normal(&mut self.rng));
+        }
+        Ok(self.last)
+    }
+
+    fn reset(&mut self) {
+        self.rng = ChaCha8Rng::seed_from_u64(self.seed);
+        self.last = None;
+    }
+}
+
+/// A standard normal draw (Box–Muller).
+fn normal(rng: &mut ChaCha8Rng) -> f64 {
+    let u1: f64 = rng.random_range(f64::MIN_POSITIVE..1.0);
+    let u2: f64 = rng.random();
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+/// One closed-loop run's settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ClosedLoopScenario {
+    /// The input, its duration, the control tick and the pre-roll (as the
+    /// open-loop experiments').
+    pub motion: OpenLoopScenario,
+    /// The camera's timing.
+    pub camera: CameraTiming,
+    /// How frames look: background, tissue, illumination, sensor noise,
+    /// blur, tape. Its `seed` is replaced by the run's, its `frame` counts
+    /// the frames.
+    pub frames: FrameParams,
+    /// How the robot's instrument and camera differ from the nominal design.
+    pub tolerances: BuildTolerances,
+    /// The compensator between θ_d and the plant; `None`: θ_c = θ_d (an
+    /// estimation run, as the paper's estimation experiments).
+    pub compensator: Option<CompensatorConfig>,
+}
+
+impl Default for ClosedLoopScenario {
+    fn default() -> Self {
+        Self {
+            motion: OpenLoopScenario::default(),
+            camera: CameraTiming::default(),
+            frames: FrameParams::default(),
+            tolerances: BuildTolerances::default(),
+            compensator: Some(CompensatorConfig::default()),
+        }
+    }
+}
+
+/// What the camera did during a run (pre-roll included).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct FrameCounts {
+    /// Frames captured.
+    pub captured: usize,
+    /// Frames lost on the way.
+    pub dropped: usize,
+    /// Frames handed to the estimator.
+    pub delivered: usize,
+    /// Frames that arrived in a tick with a newer one, and were skipped.
+    pub stale: usize,
+}
+
+/// A recorded closed-loop run: one row per evaluated tick.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ClosedLoopTrace {
+    /// θ_d, θ_a and the measured θ_a against time, as an open-loop run's.
+    pub trace: Trace,
+    /// θ_c sent to the plant, deg.
+    pub theta_c_deg: Vec<f64>,
+    /// The estimate θ̂ after each tick, deg; `None` before the estimator
+    /// had one.
+    pub theta_hat_deg: Vec<Option<f64>>,
+    /// Ticks in which the compensator held its command for a fault.
+    pub fault_ticks: usize,
+    /// The camera's frames.
+    pub frames: FrameCounts,
+}
+
+impl ClosedLoopTrace {
+    /// RMSE of the estimate against the plant's true angle over the ticks
+    /// that have one, deg.
+    ///
+    /// # Errors
+    /// [`crate::ControlError::NotEnoughData`] where no tick has an estimate.
+    pub fn estimation_rmse_deg(&self) -> Result<f64> {
+        let (truth, estimate): (Vec<f64>, Vec<f64>) = self
+            .trace
+            .theta_a_deg
+            .iter()
+            .zip(&self.theta_hat_deg)
+            .filter_map(|(&a, h)| h.map(|h| (a, h)))
+            .unzip();
+        metrics::rmse(&truth, &estimate)
+    }
+}
+
+/// A frame on its way to the estimator.
+struct InFlight {
+    arrives_s: f64,
+    image: Option<Frame>,
+    window: Option<Roi>,
+    captured_s: f64,
+    command: Command,
+    truth_theta_a_deg: f64,
+}
+
+/// The simulated robot's camera: the as-built instrument and camera, the
+/// renderer and the frames in flight.
+struct RobotCamera {
+    camera: Camera,
+    instrument: BuiltInstrument,
+    renderer: SceneRenderer,
+    shape: InstrumentShape,
+    params: FrameParams,
+    in_flight: VecDeque<InFlight>,
+    rng: ChaCha8Rng,
+    counts: FrameCounts,
+    next_capture: u64,
+}
+
+impl RobotCamera {
+    fn new(scenario: &ClosedLoopScenario, seed: u64) -> Result<Self> {
+        let tolerances = &scenario.tolerances;
+        Ok(Self {
+            camera: tolerances.camera(&Camera::default(), seed)?,
+            instrument: tolerances.instrument(&Instrument::kflex(), seed)?,
+            renderer: SceneRenderer::new(),
+            shape: InstrumentShape::default(),
+            params: FrameParams {
+                seed,
+                ..scenario.frames
+            },
+            in_flight: VecDeque::new(),
+            rng: ChaCha8Rng::seed_from_u64(seed ^ 0x6361_6d65_7261),
+            counts: FrameCounts::default(),
+            next_capture: 0,
+        })
+    }
+
+    /// Captures a frame if one is due at `time_s` (the end of a tick).
+    fn capture(
+        &mut self,
+        timing: &CameraTiming,
+        time_s: f64,
+        command: Command,
+        theta_a_deg: f64,
+        request: FrameRequest,
+    ) -> Result<()> {
+        // due: the next multiple of the frame period has been reached
+        // (a small tolerance absorbs the ticks' rounding)
+        if time_s + 1e-9 < self.next_capture as f64 / timing.rate_hz {
+            return Ok(());
+        }
+        while self.next_capture as f64 / timing.rate_hz <= time_s + 1e-9 {
+            self.next_capture += 1;
+        }
+        if request == FrameRequest::None {
+            return Ok(());
+        }
+        self.counts.captured += 1;
+        self.params.frame += 1;
+        if self.rng.random::<f64>() < timing.drop_probability {
+            self.counts.dropped += 1;
+            return Ok(());
+        }
+        let (image, window) = match request {
+            FrameRequest::Pixels(window) => {
+                self.instrument
+                    .shape_into(theta_a_deg, command.translation_mm, &mut self.shape)?;
+                let frame =
+                    self.renderer
+                        .render_window(&self.camera, &self.shape, &self.params, window)?;
+                (Some(frame), Some(window))
+            }
+            FrameRequest::Timing | FrameRequest::None => (None, None),
+        };
+        self.in_flight.push_back(InFlight {
+            arrives_s: time_s + timing.latency_s,
+            image,
+            window,
+            captured_s: time_s,
+            command,
+            truth_theta_a_deg: theta_a_deg,
+        });
+        Ok(())
+    }
+
+    /// The newest frame that has arrived by `time_s`; older arrivals are stale.
+    fn arrived(&mut self, time_s: f64) -> Option<InFlight> {
+        let mut newest = None;
+        while self
+            .in_flight
+            .front()
+            .is_some_and(|f| f.arrives_s <= time_s + 1e-9)
+        {
+            if newest.is_some() {
+                self.counts.stale += 1;
+            }
+            newest = self.in_flight.pop_front();
+        }
+        if newest.is_some() {
+            self.counts.delivered += 1;
+        }
+        newest
+    }
+}
+
+impl ClosedLoopScenario {
+    /// Checks every setting before anything moves.
+    ///
+    /// # Errors
+    /// As [`OpenLoopScenario::run`]'s checks, [`CameraTiming::validate`],
+    /// [`FrameParams::validate`], [`BuildTolerances::validate`] and
+    /// [`CompensatorConfig::validate`].
+    pub fn validate(&self) -> Result<()> {
+        self.motion.sampler()?;
+        self.camera.validate()?;
+        self.frames.validate()?;
+        self.tolerances.validate()?;
+        if let Some(c) = &self.compensator {
+            c.validate()?;
+        }
+        Ok(())
+    }
+
+    /// Runs the loop on `plant` (from its current state) with `estimator`,
+    /// the camera's frames and losses drawn from `seed`, and records the
+    /// evaluated part. The estimator is reset first.
+    ///
+    /// # Errors
+    /// Every setting is checked first, before the plant moves (see
+    /// [`ClosedLoopScenario::validate`]). Then, stopping the run: the
+    /// plant's errors (e.g. a translation outside the workspace), the
+    /// renderer's (a requested window outside the image), the estimator's.
+    pub fn run(
+        &self,
+        plant: &mut Plant,
+        estimator: &mut dyn AngleEstimator,
+        seed: u64,
+    ) -> Result<ClosedLoopTrace> {
+        self.validate()?;
+        let motion = &self.motion;
+        let sampler = motion.sampler()?;
+        let mut compensator = self.compensator.map(Compensator::new).transpose()?;
+        let mut camera = RobotCamera::new(self, seed)?;
+        estimator.reset();
+        let dt = motion.dt_s;
+        let start = sampler.sample(0.0).theta_d_deg;
+        let pre_roll: Vec<f64> = motion
+            .pre_roll(plant.state().command.theta_c_deg, start)
+            .collect();
+        let n = motion.evaluated_ticks();
+        let mut out = ClosedLoopTrace::default();
+        let mut theta_hat = None;
+        for k in 0..pre_roll.len() + n {
+            let time_s = (k + 1) as f64 * dt;
+            // the evaluated part starts after the pre-roll, at its own t = 0
+            let evaluated = k.checked_sub(pre_roll.len());
+            let (theta_d, rate) = match evaluated {
+                Some(j) => {
+                    let s = sampler.sample((j + 1) as f64 * dt);
+                    (s.theta_d_deg, s.theta_d_rate_deg_per_s)
+                }
+                None => (pre_roll[k], 0.0),
+            };
+            let theta_c = match compensator.as_mut() {
+                Some(c) => {
+                    let o = c.step(theta_d, theta_hat, dt);
+                    out.fault_ticks += usize::from(o.fault.is_some() && evaluated.is_some());
+                    o.theta_c_deg
+                }
+                None => theta_d,
+            };
+            let command = Command {
+                theta_c_deg: theta_c,
+                translation_mm: motion.translation_mm,
+            };
+            let state = plant.step(command, dt)?;
+            camera.capture(
+                &self.camera,
+                time_s,
+                command,
+                state.theta_a_deg,
+                estimator.frame_request(command),
+            )?;
+            let arrived = camera.arrived(time_s);
+            let frame = arrived.as_ref().map(|f| CameraFrame {
+                image: f.image.as_ref(),
+                window: f.window,
+                captured_s: f.captured_s,
+                command: f.command,
+                truth_theta_a_deg: f.truth_theta_a_deg,
+            });
+            theta_hat = estimator.step(&EstimatorTick {
+                time_s,
+                dt_s: dt,
+                command,
+                frame,
+            })?;
+            if let Some(j) = evaluated {
+                let t = &mut out.trace;
+                t.time_s.push((j + 1) as f64 * dt);
+                t.theta_d_deg.push(theta_d);
+                t.theta_d_rate_deg_per_s.push(rate);
+                t.theta_a_deg.push(state.theta_a_deg);
+                t.theta_a_measured_deg.push(state.theta_a_measured_deg);
+                out.theta_c_deg.push(theta_c);
+                out.theta_hat_deg.push(theta_hat);
+            }
+        }
+        out.frames = camera.counts;
+        Ok(out)
+    }
+}
