@@ -42,13 +42,17 @@ pub mod keys {
     pub const DISTANCE_PER_DEG: &str = "distance_per_deg";
 }
 
-/// A borrowed RGB frame (8 bits per channel), rows `stride` bytes apart.
+/// A borrowed RGB frame (8 bits per channel), rows `stride` bytes apart:
+/// the camera's whole image, or a window of it ([`RgbView::window`]).
 #[derive(Debug, Clone, Copy)]
 pub struct RgbView<'a> {
     data: &'a [u8],
     width: u32,
     height: u32,
     stride: usize,
+    /// Where the view's first pixel lies in the camera's image.
+    x0: u32,
+    y0: u32,
 }
 
 impl<'a> RgbView<'a> {
@@ -78,6 +82,23 @@ impl<'a> RgbView<'a> {
             width,
             height,
             stride,
+            x0: 0,
+            y0: 0,
+        })
+    }
+
+    /// A view of the pixels of `window` of the camera's image only (as
+    /// `SceneRenderer::render_window` renders them), rows `stride` bytes
+    /// apart: regions are read in the camera's coordinates, and one outside
+    /// the window is an error.
+    ///
+    /// # Errors
+    /// As [`RgbView::new`] with the window's width and height.
+    pub fn window(data: &'a [u8], window: Roi, stride: usize) -> Result<Self> {
+        Ok(Self {
+            x0: window.x0,
+            y0: window.y0,
+            ..Self::new(data, window.width, window.height, stride)?
         })
     }
 
@@ -89,8 +110,21 @@ impl<'a> RgbView<'a> {
         Self::new(data, width, height, 3 * width as usize)
     }
 
-    /// Copies `roi` into `out` as a packed RGB image.
+    /// Copies `roi` (camera coordinates) into `out` as a packed RGB image.
     fn crop_into(&self, roi: Roi, out: &mut Vec<u8>) -> Result<()> {
+        // the region in the view's own pixels; its right and bottom edges
+        // are checked there, against the view's size
+        let at_least = |name, v: u32, lo: u32| {
+            kflex_model::Bounds::closed(f64::from(lo), f64::from(u32::MAX))
+                .check(name, f64::from(v))
+        };
+        at_least("roi.x0", roi.x0, self.x0)?;
+        at_least("roi.y0", roi.y0, self.y0)?;
+        let roi = Roi {
+            x0: roi.x0 - self.x0,
+            y0: roi.y0 - self.y0,
+            ..roi
+        };
         roi.check_within(self.width, self.height)?;
         out.clear();
         let row = 3 * roi.width as usize;
@@ -379,6 +413,17 @@ impl Ibjae {
             .filter(|i| room(i) >= 0.0)
             .max_by(|a, b| room(a).total_cmp(&room(b)))
             .map_or(at_d, |best| vec![best])
+    }
+
+    /// The smallest window of the camera's image holding the regions of
+    /// `bands` (what a frame must cover for [`Ibjae::read`]); `None` for no
+    /// bands or none that exists.
+    #[must_use]
+    pub fn window(&self, bands: &[usize]) -> Option<Roi> {
+        bands
+            .iter()
+            .filter_map(|&i| self.bands.get(i).map(|b| b.band.roi))
+            .reduce(|a, b| a.union(&b))
     }
 
     /// Reads the joint from `frame` with the databases `bands` (see

@@ -1,7 +1,7 @@
 //! LBHJAE: KBJAE and IBJAE fused by a Kalman filter, as one estimator a
 //! controller steps once per tick (cargo features `onnx` and `index`).
 
-use kflex_model::Command;
+use kflex_model::{Command, Roi};
 
 use crate::error::Result;
 use crate::fusion::{Estimate, Fusion, Measurements};
@@ -56,6 +56,21 @@ impl Lbhjae {
         }
     }
 
+    /// The bands IBJAE reads for a frame at `translation_mm`, chosen with the
+    /// last fused bend once there is one ([`Ibjae::bands_for`]).
+    fn bands(&self, translation_mm: f64) -> Vec<usize> {
+        let hint = self.started.then(|| self.fusion.estimate().theta_hat_deg);
+        self.ibjae.bands_for(hint, translation_mm)
+    }
+
+    /// The window of the camera's image the next frame must cover, for a
+    /// frame at `translation_mm` ([`Ibjae::window`] of the bands [`Lbhjae::step`]
+    /// would read); `None` where no band holds the translation.
+    #[must_use]
+    pub fn frame_window(&self, translation_mm: f64) -> Option<Roi> {
+        self.ibjae.window(&self.bands(translation_mm))
+    }
+
     /// One tick: the command sent to the plant this tick, `dt_s` after the
     /// last, and the camera's frame if one arrived.
     ///
@@ -81,8 +96,7 @@ impl Lbhjae {
         }
         let ibjae = match frame {
             Some(frame) => {
-                let hint = self.started.then(|| self.fusion.estimate().theta_hat_deg);
-                let bands = self.ibjae.bands_for(hint, command.translation_mm);
+                let bands = self.bands(command.translation_mm);
                 self.ibjae.read(frame, &bands)?
             }
             None => None,

@@ -228,3 +228,86 @@ fn lbhjae_fuses_both_and_runs_without_frames() {
     );
     assert_eq!(format!("{lbhjae:?}"), before);
 }
+
+#[test]
+fn a_window_of_the_image_reads_as_the_whole_frame() {
+    // the closed loop renders only the window IBJAE reads
+    let camera = Camera::default();
+    let mut ibjae = ibjae(&camera);
+    let roi = paper_band(&camera).roi;
+    assert_eq!(ibjae.window(&[0]), Some(roi));
+    assert_eq!(ibjae.window(&[]), None);
+    assert_eq!(ibjae.window(&[7]), None);
+    let mut renderer = SceneRenderer::new();
+    let shape = Instrument::kflex().shape(23.0, 10.0).unwrap();
+    let params = FrameParams::default();
+    let full = renderer.render(&camera, &shape, &params).unwrap();
+    let whole = ibjae
+        .read(
+            &RgbView::packed(&full.rgb, full.width, full.height).unwrap(),
+            &[0],
+        )
+        .unwrap();
+    // the band's region exactly, and a window with room around it
+    let around = Roi {
+        x0: roi.x0 - 7,
+        y0: roi.y0 - 3,
+        width: roi.width + 20,
+        height: roi.height + 9,
+    };
+    for window in [roi, around] {
+        let part = renderer
+            .render_window(&camera, &shape, &params, window)
+            .unwrap();
+        let view = RgbView::window(&part.rgb, window, 3 * window.width as usize).unwrap();
+        assert_eq!(ibjae.read(&view, &[0]).unwrap(), whole, "{window:?}");
+    }
+    // a window that misses part of the region is refused, naming the edge
+    for (window, edge) in [
+        (
+            Roi {
+                x0: roi.x0 + 1,
+                ..roi
+            },
+            "roi.x0",
+        ),
+        (
+            Roi {
+                y0: roi.y0 + 1,
+                ..roi
+            },
+            "roi.y0",
+        ),
+        (
+            Roi {
+                width: roi.width - 1,
+                ..roi
+            },
+            "roi.x0 + roi.width",
+        ),
+        (
+            Roi {
+                height: roi.height - 1,
+                ..roi
+            },
+            "roi.y0 + roi.height",
+        ),
+    ] {
+        let data = vec![0u8; 3 * window.area() as usize];
+        let view = RgbView::window(&data, window, 3 * window.width as usize).unwrap();
+        let e = ibjae.read(&view, &[0]).unwrap_err();
+        assert_eq!(e.range().map(|r| r.name), Some(edge), "{e}");
+    }
+}
+
+#[test]
+fn lbhjae_names_the_window_its_next_frame_must_cover() {
+    let camera = Camera::default();
+    let kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    let fusion: Box<dyn Fusion + Send> =
+        Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap());
+    let lbhjae = Lbhjae::new(kbjae, ibjae(&camera), fusion);
+    assert_eq!(lbhjae.frame_window(10.0), Some(paper_band(&camera).roi));
+    // no band holds 30 mm: no frame to read
+    assert_eq!(lbhjae.frame_window(30.0), None);
+}

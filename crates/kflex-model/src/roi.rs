@@ -61,6 +61,23 @@ impl Roi {
         Ok(())
     }
 
+    /// The smallest region holding both.
+    #[must_use]
+    pub fn union(&self, other: &Roi) -> Roi {
+        let x0 = self.x0.min(other.x0);
+        let y0 = self.y0.min(other.y0);
+        let right = (u64::from(self.x0) + u64::from(self.width))
+            .max(u64::from(other.x0) + u64::from(other.width));
+        let bottom = (u64::from(self.y0) + u64::from(self.height))
+            .max(u64::from(other.y0) + u64::from(other.height));
+        Roi {
+            x0,
+            y0,
+            width: u32::try_from(right - u64::from(x0)).unwrap_or(u32::MAX),
+            height: u32::try_from(bottom - u64::from(y0)).unwrap_or(u32::MAX),
+        }
+    }
+
     /// Number of pixels.
     #[must_use]
     pub fn area(&self) -> u64 {
@@ -159,5 +176,42 @@ mod tests {
             .check_within(640, 480)
             .is_ok()
         );
+    }
+
+    #[test]
+    fn the_union_holds_both_and_nothing_more() {
+        let a = Roi {
+            x0: 10,
+            y0: 20,
+            width: 30,
+            height: 40,
+        };
+        let b = Roi {
+            x0: 25,
+            y0: 5,
+            width: 100,
+            height: 10,
+        };
+        let u = a.union(&b);
+        assert!(u.holds(&a) && u.holds(&b));
+        assert_eq!(
+            u,
+            Roi {
+                x0: 10,
+                y0: 5,
+                width: 115,
+                height: 55
+            }
+        );
+        assert_eq!(a.union(&a), a);
+        assert_eq!(b.union(&a), u);
+        // past u32::MAX it saturates rather than wrapping
+        let far = Roi {
+            x0: u32::MAX - 1,
+            y0: 0,
+            width: 10,
+            height: 1,
+        };
+        assert_eq!(Roi::whole(1, 1).union(&far).width, u32::MAX);
     }
 }
