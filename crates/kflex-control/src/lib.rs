@@ -33,6 +33,8 @@ mod closed_loop;
 mod compensator;
 mod dataset;
 mod error;
+#[cfg(feature = "estimators")]
+mod estimators;
 mod experiment;
 mod metrics;
 
@@ -48,5 +50,7 @@ pub use dataset::{
     KinematicDatasetConfig, KinematicSet, KinematicSetSpec,
 };
 pub use error::{ControlError, Result};
+#[cfg(feature = "estimators")]
+pub use estimators::IbjaeAlone;
 pub use experiment::{GridRow, OpenLoopGrid, OpenLoopScenario, RunMetrics, Trace};
 pub use metrics::{LOOP_BIN_DEG, MeanStd, error_peak_to_peak, loop_width, peak_loss, rmse};

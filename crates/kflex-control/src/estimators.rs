@@ -1,0 +1,122 @@
+//! The paper's estimators in the closed loop (cargo feature `estimators`):
+//! KBJAE, IBJAE alone and LBHJAE as [`AngleEstimator`]s.
+//!
+//! KBJAE reads no frames. IBJAE and LBHJAE ask the camera for the window
+//! their next reading needs ([`Ibjae::window`], [`Lbhjae::frame_window`]),
+//! so the loop renders that window only. A frame that arrives late may
+//! have been taken for a band the estimator no longer reads (its estimate
+//! moved meanwhile); only the bands the frame's window holds are read, and
+//! a frame that holds none is not used.
+
+use kflex_estimate::{Ibjae, Kbjae, Lbhjae, RgbView};
+use kflex_model::{Command, Roi};
+
+use crate::closed_loop::{AngleEstimator, CameraFrame, EstimatorTick, FrameRequest};
+use crate::error::Result;
+
+/// The pixels of a frame as IBJAE reads them (camera coordinates), where
+/// the frame carries an image.
+fn view<'a>(frame: &CameraFrame<'a>) -> Result<Option<RgbView<'a>>> {
+    match (frame.image, frame.window) {
+        (Some(image), Some(window)) => Ok(Some(RgbView::window(
+            &image.rgb,
+            window,
+            3 * image.width as usize,
+        )?)),
+        _ => Ok(None),
+    }
+}
+
+fn request(window: Option<Roi>) -> FrameRequest {
+    window.map_or(FrameRequest::None, FrameRequest::Pixels)
+}
+
+/// KBJAE alone: θ̂ = θ_c + the predicted hysteresis error, every tick.
+impl AngleEstimator for Kbjae {
+    fn frame_request(&self, _command: Command) -> FrameRequest {
+        FrameRequest::None
+    }
+
+    fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>> {
+        Ok(Some(Kbjae::step(self, tick.command.theta_c_deg, tick.dt_s)?))
+    }
+
+    fn reset(&mut self) {
+        Kbjae::reset(self);
+    }
+}
+
+/// IBJAE alone: the angle of the last frame it could read, held between
+/// frames (none before the first).
+#[derive(Debug)]
+pub struct IbjaeAlone {
+    ibjae: Ibjae,
+    last: Option<f64>,
+}
+
+impl IbjaeAlone {
+    /// IBJAE with no reading yet.
+    #[must_use]
+    pub fn new(ibjae: Ibjae) -> Self {
+        Self { ibjae, last: None }
+    }
+
+    /// The bands to read at `translation_mm`, given the last reading.
+    fn bands(&self, translation_mm: f64) -> Vec<usize> {
+        self.ibjae.bands_for(self.last, translation_mm)
+    }
+}
+
+impl AngleEstimator for IbjaeAlone {
+    fn frame_request(&self, command: Command) -> FrameRequest {
+        request(self.ibjae.window(&self.bands(command.translation_mm)))
+    }
+
+    fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>> {
+        let Some(frame) = &tick.frame else {
+            return Ok(self.last);
+        };
+        let (Some(view), Some(window)) = (view(frame)?, frame.window) else {
+            return Ok(self.last);
+        };
+        let mut bands = self.bands(frame.command.translation_mm);
+        bands.retain(|&b| window.holds(&self.ibjae.bands()[b].band.roi));
+        if let Some(reading) = self.ibjae.read(&view, &bands)? {
+            self.last = Some(reading.theta_deg);
+        }
+        Ok(self.last)
+    }
+
+    fn reset(&mut self) {
+        self.last = None;
+    }
+}
+
+/// LBHJAE: KBJAE every tick, IBJAE on each usable frame, fused.
+impl AngleEstimator for Lbhjae {
+    fn frame_request(&self, command: Command) -> FrameRequest {
+        request(self.frame_window(command.translation_mm))
+    }
+
+    fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>> {
+        let mut frame_view = None;
+        if let Some(frame) = &tick.frame
+            && let Some(v) = view(frame)?
+        {
+            let needed = self.frame_window(tick.command.translation_mm);
+            if frame
+                .window
+                .zip(needed)
+                .is_some_and(|(have, need)| have.holds(&need))
+            {
+                frame_view = Some(v);
+            }
+        }
+        let estimate = Lbhjae::step(self, tick.command, tick.dt_s, frame_view.as_ref())?;
+        Ok(Some(estimate.fused.theta_hat_deg))
+    }
+
+    fn reset(&mut self) {
+        Lbhjae::reset(self);
+    }
+}
