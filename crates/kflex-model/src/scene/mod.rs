@@ -563,29 +563,31 @@ impl SceneRenderer {
             edges,
             ..
         } = self;
-        let work_w = work.width as usize;
-        let centre = |x: usize, y: usize| -> Option<u32> {
-            inside[(y - work.y0 as usize) * work_w + (x - work.x0 as usize)].checked_sub(1)
-        };
+        let (work_x0, work_y0, work_w) = (work.x0 as usize, work.y0 as usize, work.width as usize);
+        // row `y` of `inside` (the work region holds the rows next to the region's)
+        let row = |y: usize| &inside[(y - work_y0) * work_w..(y - work_y0 + 1) * work_w];
         // the looks first (the patches' colours wait for the reflected pixels)
         raster.tiles(
             camera,
             region,
             |scene, optics, [x0, y0, x1, y1], candidates| {
                 for y in y0 as usize..y1 as usize {
+                    // the centre rays of this row and of the rows above and
+                    // below it where the image has them
+                    let (mid, above, below) = (
+                        row(y),
+                        (y > 0).then(|| row(y - 1)),
+                        (y + 1 < h).then(|| row(y + 1)),
+                    );
                     for x in x0 as usize..x1 as usize {
-                        let here = centre(x, y);
+                        let i = x - work_x0;
+                        let here = mid[i].checked_sub(1);
                         // an edge: a neighbour's centre ray disagrees (within the image)
-                        let edge = [
-                            (x.wrapping_sub(1), y),
-                            (x + 1, y),
-                            (x, y.wrapping_sub(1)),
-                            (x, y + 1),
-                        ]
-                        .iter()
-                        .any(|&(nx, ny)| {
-                            nx < w && ny < h && centre(nx, ny).is_some() != here.is_some()
-                        });
+                        let differs = |r: &[u32], j: usize| (r[j] != 0) != here.is_some();
+                        let edge = (x > 0 && differs(mid, i - 1))
+                            || (x + 1 < w && differs(mid, i + 1))
+                            || above.is_some_and(|r| differs(r, i))
+                            || below.is_some_and(|r| differs(r, i));
                         let p = ((y - region.y0 as usize) * rw + (x - region.x0 as usize)) as u32;
                         if edge {
                             let o = 3 * (y * w + x);
