@@ -113,7 +113,10 @@ impl Sensor<'_> {
     #[inline(always)]
     pub(super) fn encode(&self, v: f32) -> f32 {
         let light = (v * self.gain).clamp(0.0, 1.0);
-        self.response[((light * RESPONSE as f32 + 0.5) as usize).min(RESPONSE)]
+        // the step is in [0, RESPONSE] (0 for NaN): converted through `i32`,
+        // which the processor does in one instruction (`usize` takes two
+        // and their fix-ups); the bound keeps any value in the table
+        self.response[((light * RESPONSE as f32 + 0.5) as i32 as usize).min(RESPONSE)]
     }
 
     /// An encoded value with its noise, in 8 bits: the noise is on the encoded
