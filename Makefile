@@ -33,8 +33,9 @@ build:
 
 # kflex-estimate's features are tested too: `onnx` (ONNX Runtime, KBJAE, the
 # SCNN; its tests load the runtime library from .venv, which `make test`
-# creates first) and `index` (the feature index; with `onnx`, IBJAE and LBHJAE).
-RUST_TEST_FEATURES := --features kflex-estimate/onnx,kflex-estimate/index
+# creates first) and `index` (the feature index; with `onnx`, IBJAE and LBHJAE);
+# kflex-control's `estimators` (those estimators in the closed loop).
+RUST_TEST_FEATURES := --features kflex-estimate/onnx,kflex-estimate/index,kflex-control/estimators
 test-rust: venv
 	$(CARGO) test --workspace --locked $(RUST_TEST_FEATURES)
 

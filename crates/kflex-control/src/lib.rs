@@ -8,8 +8,11 @@
 //! anti-windup, a rate limit, faults and a watchdog; kflex's reading of
 //! Eq. 5 is in its module docs) is stepped once per control tick by the
 //! caller; `cargo run --release -p kflex-control --no-default-features
-//! --example embedded_loop` embeds it in a fixed-rate loop. The closed-loop
-//! experiments come next.
+//! --example embedded_loop` embeds it in a fixed-rate loop.
+//! [`ClosedLoopScenario::run`] closes the loop on the simulated robot:
+//! compensator, plant, the robot's camera (its rate, latency and lost
+//! frames; the window the estimator reads) and any [`AngleEstimator`]. The
+//! paper's grid of closed-loop experiments comes next.
 //!
 //! It also makes the learned estimators' training data on the testbed: the
 //! kinematic set D^k of KBJAE ([`KinematicDatasetConfig`]: periodic signals
@@ -27,6 +30,9 @@
 //!   multibody joint (kflex-model's feature of the same name). A controller
 //!   that embeds only the compensator and the metrics turns default features
 //!   off and compiles none of rapier3d, parry3d or image.
+//! * `estimators` (off): KBJAE, IBJAE (`IbjaeAlone`) and LBHJAE as
+//!   [`AngleEstimator`]s in the closed loop; it turns on kflex-estimate's
+//!   `onnx` (ONNX Runtime, loaded at run time) and `index`.
 #![warn(missing_docs)]
 
 mod closed_loop;
