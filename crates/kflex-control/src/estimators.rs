@@ -38,7 +38,11 @@ impl AngleEstimator for Kbjae {
     }
 
     fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>> {
-        Ok(Some(Kbjae::step(self, tick.command.theta_c_deg, tick.dt_s)?))
+        Ok(Some(Kbjae::step(
+            self,
+            tick.command.theta_c_deg,
+            tick.dt_s,
+        )?))
     }
 
     fn reset(&mut self) {

@@ -42,6 +42,7 @@ mod error;
 #[cfg(feature = "estimators")]
 mod estimators;
 mod experiment;
+mod grid;
 mod metrics;
 
 pub use closed_loop::{
@@ -59,4 +60,5 @@ pub use error::{ControlError, Result};
 #[cfg(feature = "estimators")]
 pub use estimators::IbjaeAlone;
 pub use experiment::{GridRow, OpenLoopGrid, OpenLoopScenario, RunMetrics, Trace};
+pub use grid::{Case, CaseKind, EstimatorKind, ExperimentGrid, OcclusionCase, Record};
 pub use metrics::{LOOP_BIN_DEG, MeanStd, error_peak_to_peak, loop_width, peak_loss, rmse};

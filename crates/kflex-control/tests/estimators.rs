@@ -66,7 +66,11 @@ fn kbjae_estimates_every_tick_without_frames() {
     let mut kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
     let out = run(&mut kbjae).unwrap();
     assert_eq!(out.frames.captured, 0);
-    assert!(out.theta_hat_deg.iter().all(|h| h.is_some_and(f64::is_finite)));
+    assert!(
+        out.theta_hat_deg
+            .iter()
+            .all(|h| h.is_some_and(f64::is_finite))
+    );
 }
 
 #[test]
@@ -99,5 +103,9 @@ fn lbhjae_closes_the_loop() {
     assert_eq!(out.fault_ticks, 0);
     assert!(out.frames.delivered > 50, "{:?}", out.frames);
     assert!(out.theta_c_deg.iter().all(|c| c.is_finite()));
-    assert!(out.theta_hat_deg.iter().all(|h| h.is_some_and(f64::is_finite)));
+    assert!(
+        out.theta_hat_deg
+            .iter()
+            .all(|h| h.is_some_and(f64::is_finite))
+    );
 }

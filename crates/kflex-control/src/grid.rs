@@ -1,0 +1,362 @@
+//! The paper's closed-loop experiments as a grid of cases (Tables V–X):
+//! which cases, which estimators, how many repeats; its scenario files are
+//! TOML (`assets/scenarios/`).
+//!
+//! **Estimation cases** (Tables V–VII) run open loop (θ_c = θ_d) and score
+//! each estimator's θ̂ against the plant's true angle. **Compensation
+//! cases** (Tables VIII–X) close the loop with the compensator on each
+//! estimator's θ̂ and score θ_a against θ_d (RMSE and the three readings of
+//! the maximum hysteresis); the estimator `none` is the uncompensated plant.
+//! Each repeat runs on its own perturbed plant (the open-loop grid's
+//! spread), with the tracker's noise, its frames over the next background
+//! in [`ExperimentGrid::backgrounds`]; the repeat's seed draws all of it,
+//! so every estimator of a case meets the same plants, frames and losses.
+
+use kflex_model::{AuroraNoise, Background, Bounds, Occlusion, Plant, PlantConfig};
+use serde::{Deserialize, Serialize};
+
+use crate::closed_loop::{AngleEstimator, ClosedLoopScenario, ClosedLoopTrace};
+use crate::error::{ControlError, Result};
+use crate::experiment::RunMetrics;
+use crate::metrics::MeanStd;
+
+/// Tape over the instrument, as the paper names its cases.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum OcclusionCase {
+    /// No tape.
+    #[serde(rename = "0%")]
+    None,
+    /// 20 % of the instrument in the working region, centred on it.
+    #[serde(rename = "20%")]
+    Middle20,
+    /// 40 %, centred.
+    #[serde(rename = "40%")]
+    Middle40,
+    /// 40 %, ending at the tool's tip.
+    #[serde(rename = "40% distal")]
+    Distal40,
+}
+
+impl OcclusionCase {
+    /// The tape it puts on the frames (its share measured in the working
+    /// region of the frame's translation, see [`Occlusion`]).
+    #[must_use]
+    pub fn occlusion(self) -> Option<Occlusion> {
+        match self {
+            Self::None => None,
+            Self::Middle20 => Some(Occlusion::new(0.2, 0.5)),
+            Self::Middle40 => Some(Occlusion::new(0.4, 0.5)),
+            Self::Distal40 => Some(Occlusion::new(0.4, 1.0)),
+        }
+    }
+
+    /// The paper's name.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "0%",
+            Self::Middle20 => "20%",
+            Self::Middle40 => "40%",
+            Self::Distal40 => "40% distal",
+        }
+    }
+}
+
+/// What a case measures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CaseKind {
+    /// Open loop; each estimate's RMSE against the true angle.
+    Estimation,
+    /// Closed loop on each estimate; θ_a's RMSE and hysteresis against θ_d.
+    Compensation,
+}
+
+/// The estimators of the paper's tables.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum EstimatorKind {
+    /// No estimate: the uncompensated plant (compensation cases only).
+    None,
+    /// KBJAE alone.
+    Kbjae,
+    /// IBJAE alone.
+    Ibjae,
+    /// LBHJAE with the paper's Kalman filter.
+    Lbhjae,
+    /// LBHJAE with kflex's adaptive filter.
+    LbhjaeAdaptive,
+}
+
+impl EstimatorKind {
+    /// Its name in scenario files and on the command line.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Kbjae => "kbjae",
+            Self::Ibjae => "ibjae",
+            Self::Lbhjae => "lbhjae",
+            Self::LbhjaeAdaptive => "lbhjae-adaptive",
+        }
+    }
+}
+
+/// One case of the grid.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Case {
+    /// The paper's table it belongs to ("V" … "X").
+    pub table: String,
+    /// What it measures.
+    pub kind: CaseKind,
+    /// Sheath configuration, deg.
+    pub sheath_deg: f64,
+    /// Tape over the instrument.
+    pub occlusion: OcclusionCase,
+}
+
+/// A grid of experiments, as a scenario file holds it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ExperimentGrid {
+    /// The cases, in order.
+    pub cases: Vec<Case>,
+    /// The estimators run on every case (`none` only on compensation cases).
+    pub estimators: Vec<EstimatorKind>,
+    /// Repeats per case and estimator.
+    pub repeats: u32,
+    /// Base seed; repeat `r` uses `seed + r` (plant, noise, frames).
+    pub seed: u64,
+    /// Relative parameter spread between repeats' plants, `[0, 0.5]`.
+    pub spread: f64,
+    /// Backgrounds, one per repeat in turn.
+    pub backgrounds: Vec<Background>,
+    /// The tracker's noise on the measured angle; `None` for the true angle.
+    pub noise: Option<AuroraNoise>,
+    /// The nominal plant (its sheath, noise and seed are set per run).
+    pub plant: PlantConfig,
+    /// Motion, camera, frames and tolerances of every run; its compensator
+    /// is used on compensation cases (and the default one where it has none).
+    pub scenario: ClosedLoopScenario,
+}
+
+impl Default for ExperimentGrid {
+    fn default() -> Self {
+        Self::paper()
+    }
+}
+
+/// One row of the results: a case and an estimator over the repeats.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Record {
+    /// The case.
+    pub case: Case,
+    /// The estimator.
+    pub estimator: EstimatorKind,
+    /// Estimation: θ̂ against the true θ_a; compensation: θ_a (measured)
+    /// against θ_d; deg, over the repeats.
+    pub rmse_deg: MeanStd,
+    /// Compensation only: the loop width, the error's peak-to-peak and the
+    /// peak loss over the repeats.
+    pub hysteresis: Option<[MeanStd; 3]>,
+    /// Each repeat's seed and background.
+    pub repeats: Vec<(u64, Background)>,
+}
+
+impl ExperimentGrid {
+    /// The paper's experiments: Tables V–VII (estimation) and VIII–X
+    /// (compensation), every estimator, three repeats (seeds 2020–2022),
+    /// colon, stomach and larynx in turn.
+    #[must_use]
+    pub fn paper() -> Self {
+        use OcclusionCase::{Distal40, Middle20, Middle40, None as Clear};
+        let mut cases = Vec::new();
+        for (kind, tables) in [
+            (CaseKind::Estimation, ["V", "VI", "VII"]),
+            (CaseKind::Compensation, ["VIII", "IX", "X"]),
+        ] {
+            let [occ, sheath, both] = tables;
+            let mut add = |table: &str, sheath_deg: f64, occlusion| {
+                cases.push(Case {
+                    table: table.to_string(),
+                    kind,
+                    sheath_deg,
+                    occlusion,
+                });
+            };
+            for o in [Clear, Middle20, Middle40, Distal40] {
+                add(occ, 0.0, o);
+            }
+            for s in [0.0, 90.0, 180.0, 270.0] {
+                add(sheath, s, Clear);
+            }
+            add(both, 270.0, Middle40);
+            add(both, 180.0, Distal40);
+            add(both, 270.0, Distal40);
+        }
+        Self {
+            cases,
+            estimators: vec![
+                EstimatorKind::None,
+                EstimatorKind::Kbjae,
+                EstimatorKind::Ibjae,
+                EstimatorKind::Lbhjae,
+                EstimatorKind::LbhjaeAdaptive,
+            ],
+            repeats: 3,
+            seed: 2020,
+            spread: 0.15,
+            backgrounds: Background::ALL.to_vec(),
+            noise: Some(AuroraNoise::default()),
+            plant: PlantConfig::default(),
+            scenario: ClosedLoopScenario::default(),
+        }
+    }
+
+    /// The cases of one table ("V" … "X") of [`ExperimentGrid::paper`].
+    #[must_use]
+    pub fn paper_table(table: &str) -> Self {
+        let mut grid = Self::paper();
+        grid.cases.retain(|c| c.table == table);
+        grid
+    }
+
+    /// Checks every setting before any run.
+    ///
+    /// # Errors
+    /// [`ControlError::OutOfRange`] naming `repeats` (`[1, 1000]`), `spread`
+    /// (`[0, 0.5]`) or a case's `sheath_deg` (`[0, 3600]`);
+    /// [`ControlError::NotEnoughData`] for no cases, estimators or
+    /// backgrounds; as [`ClosedLoopScenario::validate`].
+    pub fn validate(&self) -> Result<()> {
+        Bounds::closed(1.0, 1000.0).check("repeats", f64::from(self.repeats))?;
+        Bounds::closed(0.0, 0.5).check("spread", self.spread)?;
+        for (what, n) in [
+            ("at least one case", self.cases.len()),
+            ("at least one estimator", self.estimators.len()),
+            ("at least one background", self.backgrounds.len()),
+        ] {
+            if n == 0 {
+                return Err(ControlError::NotEnoughData {
+                    metric: "experiment grid",
+                    needed: what,
+                    got: 0,
+                });
+            }
+        }
+        for c in &self.cases {
+            Bounds::closed(0.0, 3600.0).check("sheath_deg", c.sheath_deg)?;
+        }
+        self.scenario.validate()
+    }
+
+    /// The runs of `case` with `estimator`, one per repeat: the estimator
+    /// made by `make` (called once per run), the plant drawn from the
+    /// repeat's seed. `None` is the uncompensated plant and has no
+    /// estimation run.
+    fn run_case(
+        &self,
+        case: &Case,
+        estimator: EstimatorKind,
+        make: &mut dyn FnMut(EstimatorKind) -> Result<Box<dyn AngleEstimator>>,
+    ) -> Result<Option<Record>> {
+        if case.kind == CaseKind::Estimation && estimator == EstimatorKind::None {
+            return Ok(None);
+        }
+        let mut scenario = self.scenario.clone();
+        scenario.frames.occlusion = case.occlusion.occlusion();
+        scenario.compensator = match (case.kind, estimator) {
+            (CaseKind::Estimation, _) | (_, EstimatorKind::None) => None,
+            (CaseKind::Compensation, _) => Some(scenario.compensator.unwrap_or_default()),
+        };
+        let (mut rmse, mut metrics, mut repeats) = (Vec::new(), Vec::new(), Vec::new());
+        for r in 0..self.repeats {
+            let seed = self.seed.wrapping_add(u64::from(r));
+            let background = self.backgrounds[r as usize % self.backgrounds.len()];
+            scenario.frames.background = background;
+            let mut config = self.plant.perturbed(seed, self.spread)?;
+            config.sheath_deg = case.sheath_deg;
+            config.noise = self.noise;
+            config.seed = seed;
+            let mut plant = Plant::new(config)?;
+            let mut est = match estimator {
+                // the uncompensated plant: a loop with no estimate and no compensator
+                EstimatorKind::None => make_none(),
+                kind => make(kind)?,
+            };
+            let trace: ClosedLoopTrace = scenario.run(&mut plant, est.as_mut(), seed)?;
+            match case.kind {
+                CaseKind::Estimation => rmse.push(trace.estimation_rmse_deg()?),
+                CaseKind::Compensation => {
+                    let m: RunMetrics = trace.trace.metrics()?;
+                    rmse.push(m.rmse_deg);
+                    metrics.push(m);
+                }
+            }
+            repeats.push((seed, background));
+        }
+        let pick =
+            |f: fn(&RunMetrics) -> f64| MeanStd::of(&metrics.iter().map(f).collect::<Vec<_>>());
+        let hysteresis = match case.kind {
+            CaseKind::Estimation => None,
+            CaseKind::Compensation => Some([
+                pick(|m| m.max_hysteresis_deg)?,
+                pick(|m| m.error_peak_to_peak_deg)?,
+                pick(|m| m.peak_loss_deg)?,
+            ]),
+        };
+        Ok(Some(Record {
+            case: case.clone(),
+            estimator,
+            rmse_deg: MeanStd::of(&rmse)?,
+            hysteresis,
+            repeats,
+        }))
+    }
+
+    /// Runs every case with every estimator, in order; `make` builds a
+    /// fresh estimator of a kind for each run (the paper's are loaded from
+    /// their model files; see the feature `estimators`). `progress` is
+    /// called after each record with the count done and the total.
+    ///
+    /// # Errors
+    /// Every setting is checked first ([`ExperimentGrid::validate`]); then
+    /// the first failure stops the grid: `make`'s error, a run's
+    /// ([`ClosedLoopScenario::run`]) or its metrics'.
+    pub fn run(
+        &self,
+        make: &mut dyn FnMut(EstimatorKind) -> Result<Box<dyn AngleEstimator>>,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<Vec<Record>> {
+        self.validate()?;
+        let pairs: Vec<(&Case, EstimatorKind)> = self
+            .cases
+            .iter()
+            .flat_map(|c| self.estimators.iter().map(move |&e| (c, e)))
+            .filter(|(c, e)| !(c.kind == CaseKind::Estimation && *e == EstimatorKind::None))
+            .collect();
+        let mut out = Vec::with_capacity(pairs.len());
+        for (i, (case, estimator)) in pairs.iter().enumerate() {
+            out.extend(self.run_case(case, *estimator, make)?);
+            progress(i + 1, pairs.len());
+        }
+        Ok(out)
+    }
+}
+
+/// The estimator of the uncompensated plant: it asks for no frames and has
+/// no estimate (its runs have no compensator).
+fn make_none() -> Box<dyn AngleEstimator> {
+    struct NoEstimate;
+    impl AngleEstimator for NoEstimate {
+        fn frame_request(&self, _command: kflex_model::Command) -> crate::FrameRequest {
+            crate::FrameRequest::None
+        }
+        fn step(&mut self, _tick: &crate::EstimatorTick<'_>) -> Result<Option<f64>> {
+            Ok(None)
+        }
+        fn reset(&mut self) {}
+    }
+    Box::new(NoEstimate)
+}

@@ -1,0 +1,197 @@
+//! The grid of the paper's experiments (`ExperimentGrid`) and its scenario
+//! files in `assets/scenarios/`.
+
+use std::path::Path;
+
+use kflex_control::{
+    AngleEstimator, Case, CaseKind, ControlError, EstimatorKind, ExperimentGrid, NoisyTruth,
+    OcclusionCase, OpenLoopScenario, Record,
+};
+use kflex_model::Background;
+
+fn scenario_file(name: &str) -> ExperimentGrid {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets/scenarios")
+        .join(name);
+    let text = std::fs::read_to_string(&path).unwrap();
+    toml::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+#[test]
+fn the_scenario_files_are_the_papers_grid() {
+    let paper = ExperimentGrid::paper();
+    assert_eq!(scenario_file("paper.toml"), paper);
+    assert_eq!(paper.cases.len(), 22);
+    let mut from_tables = Vec::new();
+    for table in ["V", "VI", "VII", "VIII", "IX", "X"] {
+        let grid = scenario_file(&format!("table_{}.toml", table.to_lowercase()));
+        assert_eq!(grid, ExperimentGrid::paper_table(table), "table {table}");
+        assert!(grid.cases.iter().all(|c| c.table == table));
+        from_tables.extend(grid.cases);
+    }
+    assert_eq!(from_tables, paper.cases);
+    // the paper's cases: Table V at sheath 0 over the four occlusions, VII's three pairs
+    let v: Vec<OcclusionCase> = ExperimentGrid::paper_table("V")
+        .cases
+        .iter()
+        .map(|c| c.occlusion)
+        .collect();
+    assert_eq!(
+        v,
+        [
+            OcclusionCase::None,
+            OcclusionCase::Middle20,
+            OcclusionCase::Middle40,
+            OcclusionCase::Distal40
+        ]
+    );
+    let x: Vec<(f64, &str)> = ExperimentGrid::paper_table("X")
+        .cases
+        .iter()
+        .map(|c| (c.sheath_deg, c.occlusion.name()))
+        .collect();
+    assert_eq!(
+        x,
+        [(270.0, "40%"), (180.0, "40% distal"), (270.0, "40% distal")]
+    );
+    let distal = OcclusionCase::Distal40.occlusion().unwrap();
+    assert_eq!((distal.fraction, distal.position), (0.4, 1.0));
+    assert!(OcclusionCase::None.occlusion().is_none());
+}
+
+#[test]
+fn a_malformed_scenario_names_the_field() {
+    for (text, names) in [
+        ("repeatz = 3", "repeatz"),
+        (
+            "[[cases]]\ntable = \"V\"\nkind = \"estimation\"\nsheath_deg = 0.0\nocclusion = \"30%\"",
+            "30%",
+        ),
+        ("estimators = [\"kbjae\", \"oracle\"]", "oracle"),
+        (
+            "[[cases]]\ntable = \"V\"\nkind = \"estimation\"\nocclusion = \"0%\"",
+            "sheath_deg",
+        ),
+    ] {
+        let err = toml::from_str::<ExperimentGrid>(text)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(names), "{text:?}: {err}");
+        // the line is named too
+        assert!(err.contains("line"), "{err}");
+    }
+}
+
+/// A small grid: one estimation case with distal tape, one compensation
+/// case; the uncompensated plant and a stand-in estimator; two repeats of a
+/// short input.
+fn small() -> ExperimentGrid {
+    let mut grid = ExperimentGrid {
+        cases: vec![
+            Case {
+                table: "V".into(),
+                kind: CaseKind::Estimation,
+                sheath_deg: 0.0,
+                occlusion: OcclusionCase::Distal40,
+            },
+            Case {
+                table: "VIII".into(),
+                kind: CaseKind::Compensation,
+                sheath_deg: 0.0,
+                occlusion: OcclusionCase::None,
+            },
+        ],
+        estimators: vec![EstimatorKind::None, EstimatorKind::Kbjae],
+        repeats: 2,
+        ..ExperimentGrid::paper()
+    };
+    grid.scenario.motion = OpenLoopScenario {
+        periods: 2.0,
+        ..OpenLoopScenario::default()
+    };
+    grid
+}
+
+fn run(grid: &ExperimentGrid) -> (Vec<Record>, Vec<(usize, usize)>) {
+    let mut made = Vec::new();
+    let mut make = |kind: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
+        made.push(kind);
+        Ok(Box::new(NoisyTruth::new(1.0, 9)?))
+    };
+    let mut steps = Vec::new();
+    let records = grid
+        .run(&mut make, &mut |done, total| steps.push((done, total)))
+        .unwrap();
+    // one estimator per run; none for the uncompensated plant
+    assert_eq!(made, [EstimatorKind::Kbjae; 4]);
+    (records, steps)
+}
+
+#[test]
+fn the_grid_runs_every_case_with_every_estimator() {
+    let grid = small();
+    let (records, steps) = run(&grid);
+    // no estimation record for "none"
+    let keys: Vec<(CaseKind, EstimatorKind)> =
+        records.iter().map(|r| (r.case.kind, r.estimator)).collect();
+    assert_eq!(
+        keys,
+        [
+            (CaseKind::Estimation, EstimatorKind::Kbjae),
+            (CaseKind::Compensation, EstimatorKind::None),
+            (CaseKind::Compensation, EstimatorKind::Kbjae),
+        ]
+    );
+    assert_eq!(steps, [(1, 3), (2, 3), (3, 3)]);
+    for r in &records {
+        assert_eq!(
+            r.repeats,
+            [(2020, Background::Colon), (2021, Background::Stomach)]
+        );
+        assert_eq!(
+            r.hysteresis.is_some(),
+            r.case.kind == CaseKind::Compensation
+        );
+        assert!(r.rmse_deg.mean.is_finite() && r.rmse_deg.std >= 0.0);
+    }
+    // the stand-in estimates the true angle to within its noise (and the
+    // time a 30 Hz camera takes); compensation on it cuts the RMSE
+    assert!(records[0].rmse_deg.mean < 2.0, "{:?}", records[0].rmse_deg);
+    let (none, comp) = (records[1].rmse_deg.mean, records[2].rmse_deg.mean);
+    assert!(comp < 0.5 * none, "{comp} against {none}");
+    let [width, p2p, loss] = records[1].hysteresis.unwrap();
+    assert!(width.mean > 5.0 && p2p.mean > width.mean && loss.mean > 0.0);
+    // deterministic in the seeds
+    assert_eq!(run(&grid).0, records);
+}
+
+#[test]
+fn bad_settings_are_named_before_any_run() {
+    let named = |grid: ExperimentGrid| {
+        let mut make = |_kind: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
+            panic!("no run may start")
+        };
+        grid.run(&mut make, &mut |_, _| {}).unwrap_err()
+    };
+    let e = named(ExperimentGrid {
+        repeats: 0,
+        ..small()
+    });
+    assert_eq!(e.range().map(|r| r.name), Some("repeats"));
+    let e = named(ExperimentGrid {
+        spread: f64::NAN,
+        ..small()
+    });
+    assert_eq!(e.range().map(|r| r.name), Some("spread"));
+    let mut grid = small();
+    grid.cases[1].sheath_deg = -5.0;
+    assert_eq!(named(grid).range().map(|r| r.name), Some("sheath_deg"));
+    let e = named(ExperimentGrid {
+        estimators: vec![],
+        ..small()
+    });
+    assert!(matches!(e, ControlError::NotEnoughData { .. }), "{e}");
+    let mut grid = small();
+    grid.scenario.camera.rate_hz = -1.0;
+    assert_eq!(named(grid).range().map(|r| r.name), Some("camera.rate_hz"));
+}
