@@ -395,24 +395,40 @@ impl Ibjae {
     /// translation (IBJAE then keeps the nearest answer).
     #[must_use]
     pub fn bands_for(&self, theta_hint_deg: Option<f64>, translation_mm: f64) -> Vec<usize> {
-        let at_d: Vec<usize> = (0..self.bands.len())
-            .filter(|&i| {
-                let [d0, d1] = self.bands[i].band.poses.translation_mm;
-                (d0..=d1).contains(&translation_mm)
-            })
-            .collect();
+        let mut out = Vec::new();
+        self.bands_for_into(theta_hint_deg, translation_mm, &mut out);
+        out
+    }
+
+    /// [`Ibjae::bands_for`] into `out` (cleared first), reusing its
+    /// allocation: a control tick allocates nothing.
+    pub fn bands_for_into(
+        &self,
+        theta_hint_deg: Option<f64>,
+        translation_mm: f64,
+        out: &mut Vec<usize>,
+    ) {
+        out.clear();
+        out.extend((0..self.bands.len()).filter(|&i| {
+            let [d0, d1] = self.bands[i].band.poses.translation_mm;
+            (d0..=d1).contains(&translation_mm)
+        }));
         let Some(theta) = theta_hint_deg.filter(|t| t.is_finite()) else {
-            return at_d;
+            return;
         };
         let room = |i: &usize| {
             let [lo, hi] = self.bands[*i].band.poses.theta_deg;
             (theta - lo).min(hi - theta)
         };
-        at_d.iter()
+        if let Some(best) = out
+            .iter()
             .copied()
             .filter(|i| room(i) >= 0.0)
             .max_by(|a, b| room(a).total_cmp(&room(b)))
-            .map_or(at_d, |best| vec![best])
+        {
+            out.clear();
+            out.push(best);
+        }
     }
 
     /// The smallest window of the camera's image holding the regions of

@@ -32,6 +32,8 @@ pub struct Lbhjae {
     ibjae: Ibjae,
     fusion: Box<dyn Fusion + Send>,
     started: bool,
+    /// The bands of the frame being read (kept: a tick allocates nothing).
+    bands: Vec<usize>,
 }
 
 impl std::fmt::Debug for Lbhjae {
@@ -53,14 +55,14 @@ impl Lbhjae {
             ibjae,
             fusion,
             started: false,
+            bands: Vec::new(),
         }
     }
 
-    /// The bands IBJAE reads for a frame at `translation_mm`, chosen with the
-    /// last fused bend once there is one ([`Ibjae::bands_for`]).
-    fn bands(&self, translation_mm: f64) -> Vec<usize> {
-        let hint = self.started.then(|| self.fusion.estimate().theta_hat_deg);
-        self.ibjae.bands_for(hint, translation_mm)
+    /// The last fused bend, once there is one: IBJAE's hint for choosing
+    /// its band ([`Ibjae::bands_for`]).
+    fn hint(&self) -> Option<f64> {
+        self.started.then(|| self.fusion.estimate().theta_hat_deg)
     }
 
     /// The window of the camera's image the next frame must cover, for a
@@ -68,7 +70,8 @@ impl Lbhjae {
     /// would read); `None` where no band holds the translation.
     #[must_use]
     pub fn frame_window(&self, translation_mm: f64) -> Option<Roi> {
-        self.ibjae.window(&self.bands(translation_mm))
+        self.ibjae
+            .window(&self.ibjae.bands_for(self.hint(), translation_mm))
     }
 
     /// One tick: the command sent to the plant this tick, `dt_s` after the
@@ -96,8 +99,10 @@ impl Lbhjae {
         }
         let ibjae = match frame {
             Some(frame) => {
-                let bands = self.bands(command.translation_mm);
-                self.ibjae.read(frame, &bands)?
+                let hint = self.hint();
+                self.ibjae
+                    .bands_for_into(hint, command.translation_mm, &mut self.bands);
+                self.ibjae.read(frame, &self.bands)?
             }
             None => None,
         };

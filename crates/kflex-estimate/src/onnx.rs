@@ -200,6 +200,8 @@ pub struct OnnxModel {
     input: TensorSpec,
     output: TensorSpec,
     sha256: String,
+    /// Batch 1 without allocation (the estimators' per-tick call).
+    one: BatchOne,
 }
 
 impl std::fmt::Debug for OnnxModel {
@@ -299,12 +301,14 @@ impl OnnxModel {
             .map_err(|e| onnx(&e))?;
         check_outlets(&shown, "input", session.inputs(), input)?;
         check_outlets(&shown, "output", session.outputs(), output)?;
+        let one = BatchOne::new(input, output).map_err(|m| onnx(&m))?;
         Ok(Self {
             path: shown,
             session,
             input,
             output,
             sha256,
+            one,
         })
     }
 
@@ -333,6 +337,15 @@ impl OnnxModel {
                     got,
                 });
             }
+        }
+        if batch == 1 {
+            return self
+                .one
+                .run(&self.session, input, output)
+                .map_err(|message| EstimateError::Onnx {
+                    path: self.path.clone(),
+                    message,
+                });
         }
         let shape: Vec<i64> = self
             .input
@@ -366,6 +379,151 @@ impl OnnxModel {
         }
         output.copy_from_slice(data);
         Ok(())
+    }
+}
+
+/// Batch 1 without allocation: an input and an output tensor created once
+/// over buffers this struct owns, and ONNX Runtime's C `Run` called with
+/// them, the output preallocated (`ort`'s `Session::run` builds an input
+/// list and an output map on every call, which a control tick must not).
+struct BatchOne {
+    /// The input tensor's data (its address is fixed: a boxed slice).
+    input: Box<[f32]>,
+    /// The output tensor's data.
+    output: Box<[f32]>,
+    input_value: std::ptr::NonNull<ort::sys::OrtValue>,
+    output_value: std::ptr::NonNull<ort::sys::OrtValue>,
+    input_name: std::ffi::CString,
+    output_name: std::ffi::CString,
+}
+
+// SAFETY: the two `OrtValue`s belong to this struct alone and are used only
+// through `&mut self`, so by one thread at a time; ONNX Runtime's values
+// are not tied to the thread that made them.
+unsafe impl Send for BatchOne {}
+
+/// `Ok` for a null status, else its message (the status released).
+fn status(s: ort::sys::OrtStatusPtr) -> std::result::Result<(), String> {
+    if s.0.is_null() {
+        return Ok(());
+    }
+    let api = ort::api();
+    // SAFETY: `s` is a status ONNX Runtime returned; its message lives
+    // until the status is released, which happens after the copy.
+    let message = unsafe { std::ffi::CStr::from_ptr((api.GetErrorMessage)(s.0)) }
+        .to_string_lossy()
+        .into_owned();
+    // SAFETY: released once, here.
+    unsafe { (api.ReleaseStatus)(s.0) };
+    Err(message)
+}
+
+impl BatchOne {
+    fn new(input: TensorSpec, output: TensorSpec) -> std::result::Result<Self, String> {
+        use ort::sys::{ONNXTensorElementDataType, OrtAllocatorType, OrtMemType, OrtValue};
+        let api = ort::api();
+        let batch_one = |spec: TensorSpec| -> Vec<i64> {
+            spec.shape
+                .iter()
+                .map(|&d| if d < 0 { 1 } else { d })
+                .collect()
+        };
+        let (in_shape, out_shape) = (batch_one(input), batch_one(output));
+        let mut input_data = vec![0.0f32; input.per_item()].into_boxed_slice();
+        let mut output_data = vec![0.0f32; output.per_item()].into_boxed_slice();
+        let mut info = std::ptr::null_mut();
+        // SAFETY: an out-pointer ONNX Runtime fills.
+        status(unsafe {
+            (api.CreateCpuMemoryInfo)(
+                OrtAllocatorType::OrtArenaAllocator,
+                OrtMemType::OrtMemTypeDefault,
+                &mut info,
+            )
+        })?;
+        let tensor = |data: &mut [f32], shape: &[i64]| -> std::result::Result<_, String> {
+            let mut value: *mut OrtValue = std::ptr::null_mut();
+            // SAFETY: `data` outlives the value (both are owned by the
+            // `BatchOne` being built, and the value is released first, in
+            // `drop`); the byte length and the shape agree with it.
+            status(unsafe {
+                (api.CreateTensorWithDataAsOrtValue)(
+                    info,
+                    data.as_mut_ptr().cast(),
+                    std::mem::size_of_val(data),
+                    shape.as_ptr(),
+                    shape.len(),
+                    ONNXTensorElementDataType::ONNX_TENSOR_ELEMENT_DATA_TYPE_FLOAT,
+                    &mut value,
+                )
+            })?;
+            std::ptr::NonNull::new(value).ok_or_else(|| "ONNX Runtime made no tensor".to_string())
+        };
+        let made = tensor(&mut input_data, &in_shape).and_then(|i| {
+            tensor(&mut output_data, &out_shape)
+                .map(|o| (i, o))
+                .inspect_err(|_| {
+                    // SAFETY: made above, released once.
+                    unsafe { (api.ReleaseValue)(i.as_ptr()) }
+                })
+        });
+        // SAFETY: the tensors keep their own copy of the memory description.
+        unsafe { (api.ReleaseMemoryInfo)(info) };
+        let (input_value, output_value) = made?;
+        let name = |n: &str| std::ffi::CString::new(n).map_err(|e| e.to_string());
+        Ok(Self {
+            input: input_data,
+            output: output_data,
+            input_value,
+            output_value,
+            input_name: name(input.name)?,
+            output_name: name(output.name)?,
+        })
+    }
+
+    /// One item through `session`: `input` in, the result into `output`
+    /// (both of the sizes the tensors were made with; checked by the caller).
+    fn run(
+        &mut self,
+        session: &Session,
+        input: &[f32],
+        output: &mut [f32],
+    ) -> std::result::Result<(), String> {
+        use ort::AsPointer;
+        self.input.copy_from_slice(input);
+        let api = ort::api();
+        let names_in = [self.input_name.as_ptr()];
+        let names_out = [self.output_name.as_ptr()];
+        let inputs = [self.input_value.as_ptr().cast_const()];
+        let mut outputs = [self.output_value.as_ptr()];
+        // SAFETY: the session is alive for the call; the names and values
+        // are valid and match the model's one input and one output (checked
+        // at load); the output is preallocated, so ONNX Runtime writes into
+        // `self.output` and hands back the same value.
+        status(unsafe {
+            (api.Run)(
+                session.ptr().cast_mut(),
+                std::ptr::null(),
+                names_in.as_ptr(),
+                inputs.as_ptr(),
+                1,
+                names_out.as_ptr(),
+                1,
+                outputs.as_mut_ptr(),
+            )
+        })?;
+        output.copy_from_slice(&self.output);
+        Ok(())
+    }
+}
+
+impl Drop for BatchOne {
+    fn drop(&mut self) {
+        let api = ort::api();
+        // SAFETY: made in `new`, released once, before their buffers.
+        unsafe {
+            (api.ReleaseValue)(self.input_value.as_ptr());
+            (api.ReleaseValue)(self.output_value.as_ptr());
+        }
     }
 }
 
