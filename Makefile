@@ -34,8 +34,8 @@ build:
 # kflex-estimate's features are tested too: `onnx` (ONNX Runtime, KBJAE, the
 # SCNN; its tests load the runtime library from .venv, which `make test`
 # creates first) and `index` (the feature index; with `onnx`, IBJAE and LBHJAE);
-# kflex-control's `estimators` (those estimators in the closed loop).
-RUST_TEST_FEATURES := --features kflex-estimate/onnx,kflex-estimate/index,kflex-control/estimators
+# kflex-control's `estimators` (those estimators in the closed loop) and `mcap` (logs).
+RUST_TEST_FEATURES := --features kflex-estimate/onnx,kflex-estimate/index,kflex-control/estimators,kflex-control/mcap
 test-rust: venv
 	$(CARGO) test --workspace --locked $(RUST_TEST_FEATURES)
 

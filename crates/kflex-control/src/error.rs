@@ -21,6 +21,14 @@ pub enum ControlError {
         /// What happened.
         message: String,
     },
+    /// A log file could not be written.
+    #[error("{path}: {message}")]
+    Log {
+        /// The file.
+        path: String,
+        /// What went wrong.
+        message: String,
+    },
     /// A setting of this crate is outside its range.
     #[error(transparent)]
     OutOfRange(#[from] RangeError),

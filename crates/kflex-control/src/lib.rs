@@ -33,6 +33,9 @@
 //! * `estimators` (off): KBJAE, IBJAE (`IbjaeAlone`) and LBHJAE as
 //!   [`AngleEstimator`]s in the closed loop; it turns on kflex-estimate's
 //!   `onnx` (ONNX Runtime, loaded at run time) and `index`.
+//! * `mcap` (off): [`ClosedLoopTrace::write_mcap`], a run's MCAP log
+//!   (JSON-encoded joint states with their JSON schema, the scenario as
+//!   metadata) for Foxglove.
 #![warn(missing_docs)]
 
 mod closed_loop;
@@ -43,6 +46,8 @@ mod error;
 mod estimators;
 mod experiment;
 mod grid;
+#[cfg(feature = "mcap")]
+mod mcap_log;
 mod metrics;
 
 pub use closed_loop::{
@@ -61,4 +66,6 @@ pub use error::{ControlError, Result};
 pub use estimators::IbjaeAlone;
 pub use experiment::{GridRow, OpenLoopGrid, OpenLoopScenario, RunMetrics, Trace};
 pub use grid::{Case, CaseKind, EstimatorKind, ExperimentGrid, OcclusionCase, Record};
+#[cfg(feature = "mcap")]
+pub use mcap_log::{JOINT_STATE_SCHEMA, JOINT_STATE_SCHEMA_NAME, JOINT_STATES_TOPIC, JointState};
 pub use metrics::{LOOP_BIN_DEG, MeanStd, error_peak_to_peak, loop_width, peak_loss, rmse};
