@@ -259,7 +259,7 @@ impl ExperimentGrid {
         &self,
         case: &Case,
         estimator: EstimatorKind,
-        make: &mut dyn FnMut(EstimatorKind) -> Result<Box<dyn AngleEstimator>>,
+        make: &MakeEstimator<'_>,
     ) -> Result<Option<Record>> {
         if case.kind == CaseKind::Estimation && estimator == EstimatorKind::None {
             return Ok(None);
@@ -315,20 +315,26 @@ impl ExperimentGrid {
         }))
     }
 
-    /// Runs every case with every estimator, in order; `make` builds a
-    /// fresh estimator of a kind for each run (the paper's are loaded from
-    /// their model files; see the feature `estimators`). `progress` is
-    /// called after each record with the count done and the total.
+    /// Runs every case with every estimator on `jobs` threads (at least
+    /// one; the records come in the grid's order whatever the count, and
+    /// are the same); `make` builds a fresh estimator of a kind for each run
+    /// (the paper's are loaded from their model files; see the feature
+    /// `estimators`). `progress` is called after each record with the count
+    /// done and the total.
     ///
     /// # Errors
-    /// Every setting is checked first ([`ExperimentGrid::validate`]); then
-    /// the first failure stops the grid: `make`'s error, a run's
+    /// Every setting is checked first ([`ExperimentGrid::validate`]); then a
+    /// failure stops the grid (runs already started finish), and the first
+    /// failure in the grid's order is returned: `make`'s error, a run's
     /// ([`ClosedLoopScenario::run`]) or its metrics'.
     pub fn run(
         &self,
-        make: &mut dyn FnMut(EstimatorKind) -> Result<Box<dyn AngleEstimator>>,
-        progress: &mut dyn FnMut(usize, usize),
+        jobs: usize,
+        make: &MakeEstimator<'_>,
+        progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<Vec<Record>> {
+        use std::sync::Mutex;
+        use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
         self.validate()?;
         let pairs: Vec<(&Case, EstimatorKind)> = self
             .cases
@@ -336,14 +342,55 @@ impl ExperimentGrid {
             .flat_map(|c| self.estimators.iter().map(move |&e| (c, e)))
             .filter(|(c, e)| !(c.kind == CaseKind::Estimation && *e == EstimatorKind::None))
             .collect();
-        let mut out = Vec::with_capacity(pairs.len());
-        for (i, (case, estimator)) in pairs.iter().enumerate() {
-            out.extend(self.run_case(case, *estimator, make)?);
-            progress(i + 1, pairs.len());
+        let results: Mutex<Vec<Option<Result<Option<Record>>>>> =
+            Mutex::new((0..pairs.len()).map(|_| None).collect());
+        let (next, done, failed) = (
+            AtomicUsize::new(0),
+            AtomicUsize::new(0),
+            AtomicBool::new(false),
+        );
+        let worker = || {
+            loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                if i >= pairs.len() || failed.load(Ordering::Relaxed) {
+                    return;
+                }
+                let (case, estimator) = pairs[i];
+                let result = self.run_case(case, estimator, make);
+                failed.fetch_or(result.is_err(), Ordering::Relaxed);
+                if let Ok(mut r) = results.lock() {
+                    r[i] = Some(result);
+                }
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1, pairs.len());
+            }
+        };
+        let jobs = jobs.clamp(1, pairs.len().max(1));
+        if jobs == 1 {
+            worker();
+        } else {
+            std::thread::scope(|scope| {
+                for _ in 0..jobs {
+                    scope.spawn(worker);
+                }
+            });
+        }
+        let results = results.into_inner().map_err(|_| ControlError::Worker {
+            message: "an experiment thread panicked".into(),
+        })?;
+        let mut out = Vec::with_capacity(results.len());
+        for r in results {
+            match r {
+                Some(r) => out.extend(r?),
+                // not run: an earlier failure stopped the grid
+                None => continue,
+            }
         }
         Ok(out)
     }
 }
+
+/// Builds a fresh estimator of a kind for one run (shared by the grid's threads).
+pub type MakeEstimator<'a> = dyn Fn(EstimatorKind) -> Result<Box<dyn AngleEstimator>> + Sync + 'a;
 
 /// The estimator of the uncompensated plant: it asks for no frames and has
 /// no estimate (its runs have no compensator).

@@ -65,7 +65,9 @@ pub use error::{ControlError, Result};
 #[cfg(feature = "estimators")]
 pub use estimators::IbjaeAlone;
 pub use experiment::{GridRow, OpenLoopGrid, OpenLoopScenario, RunMetrics, Trace};
-pub use grid::{Case, CaseKind, EstimatorKind, ExperimentGrid, OcclusionCase, Record};
+pub use grid::{
+    Case, CaseKind, EstimatorKind, ExperimentGrid, MakeEstimator, OcclusionCase, Record,
+};
 #[cfg(feature = "mcap")]
 pub use mcap_log::{JOINT_STATE_SCHEMA, JOINT_STATE_SCHEMA_NAME, JOINT_STATES_TOPIC, JointState};
 pub use metrics::{LOOP_BIN_DEG, MeanStd, error_peak_to_peak, loop_width, peak_loss, rmse};

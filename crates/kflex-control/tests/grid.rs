@@ -2,6 +2,7 @@
 //! files in `assets/scenarios/`.
 
 use std::path::Path;
+use std::sync::Mutex;
 
 use kflex_control::{
     AngleEstimator, Case, CaseKind, ControlError, EstimatorKind, ExperimentGrid, NoisyTruth,
@@ -112,25 +113,29 @@ fn small() -> ExperimentGrid {
     grid
 }
 
-fn run(grid: &ExperimentGrid) -> (Vec<Record>, Vec<(usize, usize)>) {
-    let mut made = Vec::new();
-    let mut make = |kind: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
-        made.push(kind);
+fn run(grid: &ExperimentGrid, jobs: usize) -> (Vec<Record>, Vec<(usize, usize)>) {
+    let made = Mutex::new(Vec::new());
+    let make = |kind: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
+        made.lock().unwrap().push(kind);
         Ok(Box::new(NoisyTruth::new(1.0, 9)?))
     };
-    let mut steps = Vec::new();
+    let steps = Mutex::new(Vec::new());
     let records = grid
-        .run(&mut make, &mut |done, total| steps.push((done, total)))
+        .run(jobs, &make, &|done, total| {
+            steps.lock().unwrap().push((done, total))
+        })
         .unwrap();
     // one estimator per run; none for the uncompensated plant
-    assert_eq!(made, [EstimatorKind::Kbjae; 4]);
+    assert_eq!(made.into_inner().unwrap(), [EstimatorKind::Kbjae; 4]);
+    let mut steps = steps.into_inner().unwrap();
+    steps.sort_unstable();
     (records, steps)
 }
 
 #[test]
 fn the_grid_runs_every_case_with_every_estimator() {
     let grid = small();
-    let (records, steps) = run(&grid);
+    let (records, steps) = run(&grid, 1);
     // no estimation record for "none"
     let keys: Vec<(CaseKind, EstimatorKind)> =
         records.iter().map(|r| (r.case.kind, r.estimator)).collect();
@@ -161,17 +166,18 @@ fn the_grid_runs_every_case_with_every_estimator() {
     assert!(comp < 0.5 * none, "{comp} against {none}");
     let [width, p2p, loss] = records[1].hysteresis.unwrap();
     assert!(width.mean > 5.0 && p2p.mean > width.mean && loss.mean > 0.0);
-    // deterministic in the seeds
-    assert_eq!(run(&grid).0, records);
+    // deterministic in the seeds, and the same on two threads
+    assert_eq!(run(&grid, 1).0, records);
+    assert_eq!(run(&grid, 2), (records, steps));
 }
 
 #[test]
 fn bad_settings_are_named_before_any_run() {
     let named = |grid: ExperimentGrid| {
-        let mut make = |_kind: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
+        let make = |_kind: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
             panic!("no run may start")
         };
-        grid.run(&mut make, &mut |_, _| {}).unwrap_err()
+        grid.run(2, &make, &|_, _| {}).unwrap_err()
     };
     let e = named(ExperimentGrid {
         repeats: 0,
@@ -194,4 +200,26 @@ fn bad_settings_are_named_before_any_run() {
     let mut grid = small();
     grid.scenario.camera.rate_hz = -1.0;
     assert_eq!(named(grid).range().map(|r| r.name), Some("camera.rate_hz"));
+}
+
+#[test]
+fn the_first_failure_in_the_grids_order_stops_it() {
+    // the estimator of the second pair fails to load
+    for jobs in [1, 2] {
+        let count = Mutex::new(0);
+        let make = |_kind: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
+            let mut n = count.lock().unwrap();
+            *n += 1;
+            if *n == 3 {
+                return Err(ControlError::NotEnoughData {
+                    metric: "model file",
+                    needed: "a trained model",
+                    got: 0,
+                });
+            }
+            Ok(Box::new(NoisyTruth::new(1.0, 9)?))
+        };
+        let e = small().run(jobs, &make, &|_, _| {}).unwrap_err();
+        assert!(e.to_string().contains("model file"), "{e}");
+    }
 }
