@@ -3,47 +3,16 @@
 //! instrument, frames rendered and segmented, the SCNN and the index.
 #![cfg(all(feature = "onnx", feature = "index"))]
 
-use std::path::{Path, PathBuf};
+#[path = "support/paper_ibjae.rs"]
+mod paper_ibjae;
+
+use paper_ibjae::{data, ibjae, paper_band};
 
 use kflex_estimate::{
     AdaptiveKalman, AdaptiveParams, EstimateError, Fusion, Ibjae, Kbjae, Lbhjae, RgbView, Scnn,
     SegmentParams, build_band_database,
 };
-use kflex_model::{
-    Camera, Command, FrameParams, Instrument, PoseRange, Roi, SceneRenderer, WorkingBand,
-};
-
-fn data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data")
-        .join(name)
-}
-
-/// The paper's band: θ 0–50° at d = 10 mm in the paper's region.
-fn paper_band(camera: &Camera) -> WorkingBand {
-    WorkingBand {
-        poses: PoseRange {
-            theta_deg: [0.0, 50.0],
-            translation_mm: [10.0, 10.0],
-        },
-        roi: Roi::paper(camera).unwrap(),
-    }
-}
-
-fn ibjae(camera: &Camera) -> Ibjae {
-    let mut scnn = Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
-    let db = build_band_database(
-        &mut scnn,
-        camera,
-        &Instrument::kflex(),
-        &paper_band(camera),
-        1.0,
-        1.0,
-    )
-    .unwrap();
-    assert_eq!(db.index.len(), 51);
-    Ibjae::new(scnn, SegmentParams::default(), vec![db]).unwrap()
-}
+use kflex_model::{Camera, Command, FrameParams, Instrument, Roi, SceneRenderer};
 
 #[test]
 fn ibjae_reads_rendered_frames_near_their_pose() {

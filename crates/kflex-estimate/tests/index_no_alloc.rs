@@ -3,39 +3,16 @@
 //! (Its own test binary: the allocator is global.)
 #![cfg(feature = "index")]
 
+#[path = "support/counting.rs"]
+mod counting;
 #[path = "support/manifold.rs"]
 mod manifold;
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use kflex_estimate::{FeatureIndex, IndexParams, Neighbour, ProjectionDims};
 use manifold::{DEFAULT_NOISE_STD, Manifold, rng};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: forwards to the system allocator, only counting calls.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: the caller's contract, passed on.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: the caller's contract, passed on.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: the caller's contract, passed on.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn queries_allocate_nothing_after_the_first() {
@@ -47,14 +24,14 @@ fn queries_allocate_nothing_after_the_first() {
             .unwrap();
         let mut out = vec![Neighbour::default(); 1000];
         index.nearest(&queries[..256]).unwrap();
-        let before = ALLOCATIONS.load(Ordering::Relaxed);
+        let before = counting::allocations();
         let mut sum = 0;
         for q in queries.chunks_exact(256) {
             sum += index.nearest(q).unwrap().index;
             sum += index.nearest_linear(q).unwrap().index;
         }
         index.nearest_batch_into(&queries, &mut out).unwrap();
-        let after = ALLOCATIONS.load(Ordering::Relaxed);
+        let after = counting::allocations();
         assert_eq!(after - before, 0, "K = {}: {sum}", k.get());
     }
 }
