@@ -402,6 +402,10 @@ struct BatchOne {
 // are not tied to the thread that made them.
 unsafe impl Send for BatchOne {}
 
+// SAFETY: nothing reads or writes the values through `&self`: `run` takes
+// `&mut self`, so a shared reference gives no access to them at all.
+unsafe impl Sync for BatchOne {}
+
 /// `Ok` for a null status, else its message (the status released).
 fn status(s: ort::sys::OrtStatusPtr) -> std::result::Result<(), String> {
     if s.0.is_null() {
