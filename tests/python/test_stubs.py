@@ -54,6 +54,7 @@ SAMPLES = {
     "KalmanParams": lambda: kflex.KalmanParams(),
     "AdaptiveParams": lambda: kflex.AdaptiveParams(),
     "CompensatorConfig": lambda: kflex.CompensatorConfig(),
+    "ClosedLoopScenario": lambda: kflex.ClosedLoopScenario(),
 }
 
 

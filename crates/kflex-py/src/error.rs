@@ -153,6 +153,8 @@ pub(crate) fn classify(e: &Error) -> Option<Kind> {
         Error::Control(
             ControlError::NotEnoughData { .. } | ControlError::NonFiniteSample { .. },
         ) => Kind::Value,
+        // a log file that cannot be written
+        Error::Control(ControlError::Log { .. }) => Kind::Os(ErrorKind::Other),
         Error::Control(_) => Kind::Runtime,
         // serde's messages: "invalid value: …" and "unknown variant …" are bad
         // values; "invalid type: …", "missing field …", "unknown field …" are

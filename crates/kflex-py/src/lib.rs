@@ -37,6 +37,7 @@
 
 mod array;
 mod camera;
+mod closed_loop;
 mod compensator;
 mod dataset;
 mod error;
@@ -109,6 +110,9 @@ fn _kflex(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<compensator::PyFault>()?;
     m.add_class::<compensator::PyCompensatorOutput>()?;
     m.add_class::<compensator::PyCompensator>()?;
+    m.add_class::<closed_loop::PyNoisyTruth>()?;
+    m.add_class::<closed_loop::PyClosedLoopScenario>()?;
+    m.add_class::<closed_loop::PyClosedLoopTrace>()?;
     m.add_class::<models::PyKbjae>()?;
     m.add_class::<models::PyScnn>()?;
     m.add_class::<retrieval::PyNeighbour>()?;

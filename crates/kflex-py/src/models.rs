@@ -20,7 +20,7 @@ use crate::error::Result;
 /// keep none.
 #[pyclass(name = "Kbjae", module = "kflex")]
 pub struct PyKbjae {
-    inner: Kbjae,
+    pub(crate) inner: Kbjae,
 }
 
 #[pymethods]

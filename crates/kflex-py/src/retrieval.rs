@@ -434,7 +434,7 @@ pub struct PyLbhjaeEstimate {
 pub struct PyLbhjae {
     // a Mutex only to make the boxed filter `Sync`, as a Python class must
     // be; `&mut self` reaches it without locking
-    inner: Mutex<Lbhjae>,
+    pub(crate) inner: Mutex<Lbhjae>,
 }
 
 #[pymethods]

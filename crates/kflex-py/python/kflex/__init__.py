@@ -19,6 +19,11 @@ loaded from the ``onnxruntime`` wheel when the first model is (a
 ``RuntimeError`` says what to install when it is missing);
 ``FeatureIndex`` and ``build_band_database`` make IBJAE's databases;
 ``Ibjae`` and ``Lbhjae`` are the whole estimators.
+
+The closed loop: ``ClosedLoopScenario().run(plant, estimator, seed)`` steps
+the compensator, the plant, the robot's camera and an estimator (a
+``NoisyTruth`` stand-in, ``Kbjae`` or ``Lbhjae``) in Rust and returns a
+``ClosedLoopTrace``; with ``mcap_path`` it also writes the run's MCAP log.
 """
 
 from kflex._kflex import (
@@ -29,6 +34,8 @@ from kflex._kflex import (
     BuildTolerances,
     BuiltInstrument,
     Camera,
+    ClosedLoopScenario,
+    ClosedLoopTrace,
     Command,
     Compensator,
     CompensatorConfig,
@@ -55,6 +62,7 @@ from kflex._kflex import (
     Lens,
     Neighbour,
     NoInstrumentError,
+    NoisyTruth,
     Occlusion,
     OpenLoopScenario,
     PaperKalman,
@@ -112,6 +120,8 @@ __all__ = [
     "BuildTolerances",
     "BuiltInstrument",
     "Camera",
+    "ClosedLoopScenario",
+    "ClosedLoopTrace",
     "Command",
     "Compensator",
     "CompensatorConfig",
@@ -138,6 +148,7 @@ __all__ = [
     "Lens",
     "Neighbour",
     "NoInstrumentError",
+    "NoisyTruth",
     "Occlusion",
     "OpenLoopScenario",
     "PaperKalman",

@@ -1,0 +1,171 @@
+//! The closed loop (kflex-control's `ClosedLoopScenario`): compensator,
+//! plant, the robot's camera and an estimator, tick by tick, in Rust
+//! without the interpreter lock; and a run's MCAP log.
+
+use std::path::PathBuf;
+
+use kflex_control::{AngleEstimator, ClosedLoopScenario, ClosedLoopTrace, NoisyTruth, RunMetrics};
+use pyo3::prelude::*;
+
+use crate::array;
+use crate::error::{Error, Result};
+use crate::models::PyKbjae;
+use crate::plant::PyPlant;
+use crate::retrieval::PyLbhjae;
+use crate::value::{self, serde_class};
+
+/// A stand-in estimator (kflex-control's `NoisyTruth`): the plant's true
+/// angle at each camera frame plus Gaussian noise of `sigma_deg`, held
+/// between frames; no pixels are rendered. Raises `RangeError` for
+/// `sigma_deg` outside [0, 90].
+#[pyclass(name = "NoisyTruth", module = "kflex")]
+pub struct PyNoisyTruth {
+    inner: NoisyTruth,
+}
+
+#[pymethods]
+impl PyNoisyTruth {
+    #[new]
+    #[pyo3(signature = (sigma_deg, seed = 0))]
+    fn py_new(sigma_deg: f64, seed: u64) -> Result<Self> {
+        Ok(Self {
+            inner: NoisyTruth::new(sigma_deg, seed)?,
+        })
+    }
+}
+
+serde_class!(
+    /// One closed-loop run's settings (kflex-control's `ClosedLoopScenario`):
+    /// `motion` (an `OpenLoopScenario`'s fields: input, duration, tick,
+    /// pre-roll, translation), `camera` (`rate_hz`, `latency_s`,
+    /// `drop_probability`), `frames` (a `FrameParams`' fields), `tolerances`
+    /// (a `BuildTolerances`' fields: the robot's instrument and camera
+    /// against the nominal ones) and `compensator` (a `CompensatorConfig`'s
+    /// fields, or None for θ_c = θ_d).
+    PyClosedLoopScenario, "ClosedLoopScenario", ClosedLoopScenario, {
+        /// Runs the loop on `plant` (from its current state) with
+        /// `estimator` (a `NoisyTruth`, `Kbjae` or `Lbhjae`, reset first),
+        /// frames and losses drawn from `seed`, and returns the evaluated
+        /// part. With `mcap_path`, also writes the run's MCAP log there.
+        /// Raises `RangeError` for a setting out of range (before the plant
+        /// moves), `TypeError` for another estimator, and the estimator's
+        /// or the plant's errors; `OSError` when the log cannot be written.
+        #[pyo3(signature = (plant, estimator, seed = 0, mcap_path = None))]
+        fn run(
+            &self,
+            py: Python<'_>,
+            mut plant: PyRefMut<'_, PyPlant>,
+            estimator: &Bound<'_, PyAny>,
+            seed: u64,
+            mcap_path: Option<PathBuf>,
+        ) -> Result<PyClosedLoopTrace> {
+            let scenario = self.inner.clone();
+            let plant = &mut plant.inner;
+            let go = |estimator: &mut dyn AngleEstimator, plant: &mut kflex_model::Plant| {
+                let trace = scenario.run(plant, estimator, seed)?;
+                if let Some(path) = &mcap_path {
+                    trace.write_mcap(path, &scenario, seed)?;
+                }
+                Ok::<_, Error>(trace)
+            };
+            let trace = if let Ok(mut e) = estimator.extract::<PyRefMut<'_, PyNoisyTruth>>() {
+                let e = &mut e.inner;
+                py.detach(|| go(e, plant))?
+            } else if let Ok(mut e) = estimator.extract::<PyRefMut<'_, PyKbjae>>() {
+                let e = &mut e.inner;
+                py.detach(|| go(e, plant))?
+            } else if let Ok(mut e) = estimator.extract::<PyRefMut<'_, PyLbhjae>>() {
+                let e = e.inner.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
+                py.detach(|| go(e, plant))?
+            } else {
+                return Err(Error::Py(pyo3::exceptions::PyTypeError::new_err(format!(
+                    "estimator must be a NoisyTruth, Kbjae or Lbhjae, not {}",
+                    estimator.get_type().name().map_err(Error::Py)?
+                ))));
+            };
+            Ok(PyClosedLoopTrace { inner: trace })
+        }
+    }
+);
+
+/// A recorded closed-loop run (kflex-control's `ClosedLoopTrace`): one row
+/// per evaluated tick, each column a float64 array.
+#[pyclass(name = "ClosedLoopTrace", module = "kflex")]
+pub struct PyClosedLoopTrace {
+    inner: ClosedLoopTrace,
+}
+
+#[pymethods]
+impl PyClosedLoopTrace {
+    /// Time since the start of evaluation, s.
+    #[getter]
+    fn time_s<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
+        array::column(py, self.inner.trace.time_s.clone())
+    }
+
+    /// θ_d, deg.
+    #[getter]
+    fn theta_d_deg<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
+        array::column(py, self.inner.trace.theta_d_deg.clone())
+    }
+
+    /// θ_c sent to the plant, deg.
+    #[getter]
+    fn theta_c_deg<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
+        array::column(py, self.inner.theta_c_deg.clone())
+    }
+
+    /// True θ_a, deg.
+    #[getter]
+    fn theta_a_deg<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
+        array::column(py, self.inner.trace.theta_a_deg.clone())
+    }
+
+    /// θ_a as the tracker measures it, deg.
+    #[getter]
+    fn theta_a_measured_deg<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
+        array::column(py, self.inner.trace.theta_a_measured_deg.clone())
+    }
+
+    /// The estimate θ̂, deg; NaN before the estimator had one.
+    #[getter]
+    fn theta_hat_deg<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
+        let hat = self
+            .inner
+            .theta_hat_deg
+            .iter()
+            .map(|h| h.unwrap_or(f64::NAN))
+            .collect();
+        array::column(py, hat)
+    }
+
+    /// Ticks in which the compensator held its command for a fault.
+    #[getter]
+    fn fault_ticks(&self) -> usize {
+        self.inner.fault_ticks
+    }
+
+    /// The camera's frames: a `dict` of `captured`, `dropped`, `delivered`
+    /// and `stale`.
+    #[getter]
+    fn frames<'py>(&self, py: Python<'py>) -> Result<Bound<'py, PyAny>> {
+        Ok(value::to_py(py, &value::to_value(&self.inner.frames)?)?)
+    }
+
+    /// θ_a against θ_d, the paper's metrics on the measured angle, deg (as
+    /// `Trace.metrics`).
+    fn metrics<'py>(&self, py: Python<'py>) -> Result<Bound<'py, PyAny>> {
+        let m: RunMetrics = self.inner.trace.metrics()?;
+        Ok(value::to_py(py, &value::to_value(&m)?)?)
+    }
+
+    /// RMSE of the estimate against the true angle over the ticks that have
+    /// one, deg. Raises `ValueError` where none has.
+    fn estimation_rmse_deg(&self) -> Result<f64> {
+        Ok(self.inner.estimation_rmse_deg()?)
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.trace.time_s.len()
+    }
+}
