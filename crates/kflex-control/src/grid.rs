@@ -251,26 +251,29 @@ impl ExperimentGrid {
         self.scenario.validate()
     }
 
-    /// The runs of `case` with `estimator`, one per repeat: the estimator
-    /// made by `make` (called once per run), the plant drawn from the
-    /// repeat's seed. `None` is the uncompensated plant and has no
-    /// estimation run.
+    /// The runs of `case`, one per repeat, the plant drawn from the repeat's
+    /// seed; estimators made by `make` (called once per estimator and run).
+    /// An estimation case runs open loop, so its estimators share each run
+    /// ([`Fanout`]: the same plant, frames and losses); a compensation case
+    /// gets one estimator, `None` being the uncompensated plant. One record
+    /// per estimator, in `estimators`' order.
     fn run_case(
         &self,
         case: &Case,
-        estimator: EstimatorKind,
+        estimators: &[EstimatorKind],
         make: &MakeEstimator<'_>,
-    ) -> Result<Option<Record>> {
-        if case.kind == CaseKind::Estimation && estimator == EstimatorKind::None {
-            return Ok(None);
-        }
+    ) -> Result<Vec<Record>> {
         let mut scenario = self.scenario.clone();
         scenario.frames.occlusion = case.occlusion.occlusion();
-        scenario.compensator = match (case.kind, estimator) {
-            (CaseKind::Estimation, _) | (_, EstimatorKind::None) => None,
-            (CaseKind::Compensation, _) => Some(scenario.compensator.unwrap_or_default()),
+        scenario.compensator = match (case.kind, estimators) {
+            (CaseKind::Compensation, [e]) if *e != EstimatorKind::None => {
+                Some(scenario.compensator.unwrap_or_default())
+            }
+            _ => None,
         };
-        let (mut rmse, mut metrics, mut repeats) = (Vec::new(), Vec::new(), Vec::new());
+        let n = estimators.len();
+        let (mut rmse, mut metrics) = (vec![Vec::new(); n], Vec::new());
+        let mut repeats = Vec::new();
         for r in 0..self.repeats {
             let seed = self.seed.wrapping_add(u64::from(r));
             let background = self.backgrounds[r as usize % self.backgrounds.len()];
@@ -280,17 +283,25 @@ impl ExperimentGrid {
             config.noise = self.noise;
             config.seed = seed;
             let mut plant = Plant::new(config)?;
-            let mut est = match estimator {
-                // the uncompensated plant: a loop with no estimate and no compensator
-                EstimatorKind::None => make_none(),
-                kind => make(kind)?,
-            };
-            let trace: ClosedLoopTrace = scenario.run(&mut plant, est.as_mut(), seed)?;
+            let members = estimators
+                .iter()
+                .map(|&kind| match kind {
+                    // the uncompensated plant: a loop with no estimate and no compensator
+                    EstimatorKind::None => Ok(make_none()),
+                    kind => make(kind),
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let mut all = Fanout::new(members);
+            let trace: ClosedLoopTrace = scenario.run(&mut plant, &mut all, seed)?;
             match case.kind {
-                CaseKind::Estimation => rmse.push(trace.estimation_rmse_deg()?),
+                CaseKind::Estimation => {
+                    for (i, out) in rmse.iter_mut().enumerate() {
+                        out.push(all.estimation_rmse_deg(i, &trace)?);
+                    }
+                }
                 CaseKind::Compensation => {
                     let m: RunMetrics = trace.trace.metrics()?;
-                    rmse.push(m.rmse_deg);
+                    rmse[0].push(m.rmse_deg);
                     metrics.push(m);
                 }
             }
@@ -306,21 +317,29 @@ impl ExperimentGrid {
                 pick(|m| m.peak_loss_deg)?,
             ]),
         };
-        Ok(Some(Record {
-            case: case.clone(),
-            estimator,
-            rmse_deg: MeanStd::of(&rmse)?,
-            hysteresis,
-            repeats,
-        }))
+        estimators
+            .iter()
+            .zip(&rmse)
+            .map(|(&estimator, rmse)| {
+                Ok(Record {
+                    case: case.clone(),
+                    estimator,
+                    rmse_deg: MeanStd::of(rmse)?,
+                    hysteresis,
+                    repeats: repeats.clone(),
+                })
+            })
+            .collect()
     }
 
     /// Runs every case with every estimator on `jobs` threads (at least
     /// one; the records come in the grid's order whatever the count, and
     /// are the same); `make` builds a fresh estimator of a kind for each run
     /// (the paper's are loaded from their model files; see the feature
-    /// `estimators`). `progress` is called after each record with the count
-    /// done and the total.
+    /// `estimators`). An estimation case's estimators share its runs (the
+    /// issue: all estimators on the same run). `progress` is called after
+    /// each job (an estimation case, or a compensation case with one
+    /// estimator) with the count done and the total.
     ///
     /// # Errors
     /// Every setting is checked first ([`ExperimentGrid::validate`]); then a
@@ -336,13 +355,24 @@ impl ExperimentGrid {
         use std::sync::Mutex;
         use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
         self.validate()?;
-        let pairs: Vec<(&Case, EstimatorKind)> = self
+        // an estimation case is one job (its estimators share each run), a
+        // compensation case one job per estimator
+        let estimating: Vec<EstimatorKind> = self
+            .estimators
+            .iter()
+            .copied()
+            .filter(|&e| e != EstimatorKind::None)
+            .collect();
+        let pairs: Vec<(&Case, Vec<EstimatorKind>)> = self
             .cases
             .iter()
-            .flat_map(|c| self.estimators.iter().map(move |&e| (c, e)))
-            .filter(|(c, e)| !(c.kind == CaseKind::Estimation && *e == EstimatorKind::None))
+            .flat_map(|c| match c.kind {
+                CaseKind::Estimation => vec![(c, estimating.clone())],
+                CaseKind::Compensation => self.estimators.iter().map(|&e| (c, vec![e])).collect(),
+            })
+            .filter(|(_, e)| !e.is_empty())
             .collect();
-        let results: Mutex<Vec<Option<Result<Option<Record>>>>> =
+        let results: Mutex<Vec<Option<Result<Vec<Record>>>>> =
             Mutex::new((0..pairs.len()).map(|_| None).collect());
         let (next, done, failed) = (
             AtomicUsize::new(0),
@@ -355,8 +385,8 @@ impl ExperimentGrid {
                 if i >= pairs.len() || failed.load(Ordering::Relaxed) {
                     return;
                 }
-                let (case, estimator) = pairs[i];
-                let result = self.run_case(case, estimator, make);
+                let (case, estimators) = &pairs[i];
+                let result = self.run_case(case, estimators, make);
                 failed.fetch_or(result.is_err(), Ordering::Relaxed);
                 if let Ok(mut r) = results.lock() {
                     r[i] = Some(result);
@@ -391,6 +421,64 @@ impl ExperimentGrid {
 
 /// Builds a fresh estimator of a kind for one run (shared by the grid's threads).
 pub type MakeEstimator<'a> = dyn Fn(EstimatorKind) -> Result<Box<dyn AngleEstimator>> + Sync + 'a;
+
+/// Several estimators on one run: every tick goes to each, the camera
+/// renders what the most demanding of them asks for (the union of their
+/// windows), and each one's estimates are kept. The loop's θ̂ is the first
+/// one's (an estimation run has no compensator to use it).
+struct Fanout {
+    members: Vec<Box<dyn AngleEstimator>>,
+    /// Each member's estimate after every tick, pre-roll included.
+    hats: Vec<Vec<Option<f64>>>,
+}
+
+impl Fanout {
+    fn new(members: Vec<Box<dyn AngleEstimator>>) -> Self {
+        let hats = vec![Vec::new(); members.len()];
+        Self { members, hats }
+    }
+
+    /// Member `i`'s estimation RMSE over the evaluated ticks of `trace`
+    /// (the last ones it stepped), as [`ClosedLoopTrace::estimation_rmse_deg`].
+    fn estimation_rmse_deg(&self, i: usize, trace: &ClosedLoopTrace) -> Result<f64> {
+        let n = trace.trace.theta_a_deg.len();
+        let hats = &self.hats[i];
+        let own = ClosedLoopTrace {
+            theta_hat_deg: hats[hats.len().saturating_sub(n)..].to_vec(),
+            ..trace.clone()
+        };
+        own.estimation_rmse_deg()
+    }
+}
+
+impl AngleEstimator for Fanout {
+    fn frame_request(&self, command: kflex_model::Command) -> crate::FrameRequest {
+        use crate::FrameRequest::{None as NoFrames, Pixels, Timing};
+        self.members
+            .iter()
+            .map(|m| m.frame_request(command))
+            .fold(NoFrames, |a, b| match (a, b) {
+                (Pixels(x), Pixels(y)) => Pixels(x.union(&y)),
+                (Pixels(x), _) | (_, Pixels(x)) => Pixels(x),
+                (Timing, _) | (_, Timing) => Timing,
+                _ => NoFrames,
+            })
+    }
+
+    fn step(&mut self, tick: &crate::EstimatorTick<'_>) -> Result<Option<f64>> {
+        for (m, hats) in self.members.iter_mut().zip(&mut self.hats) {
+            hats.push(m.step(tick)?);
+        }
+        Ok(self.hats.first().and_then(|h| h.last().copied().flatten()))
+    }
+
+    fn reset(&mut self) {
+        for (m, hats) in self.members.iter_mut().zip(&mut self.hats) {
+            m.reset();
+            hats.clear();
+        }
+    }
+}
 
 /// The estimator of the uncompensated plant: it asks for no frames and has
 /// no estimate (its runs have no compensator).

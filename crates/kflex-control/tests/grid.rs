@@ -223,3 +223,34 @@ fn the_first_failure_in_the_grids_order_stops_it() {
         assert!(e.to_string().contains("model file"), "{e}");
     }
 }
+
+#[test]
+fn an_estimation_cases_estimators_share_its_runs() {
+    // a stand-in per kind, with its own noise: together on one run they
+    // read the same as each alone (the open loop does not depend on them)
+    let make = |kind: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
+        let sigma = if kind == EstimatorKind::Kbjae {
+            0.5
+        } else {
+            3.0
+        };
+        Ok(Box::new(NoisyTruth::new(sigma, 4)?))
+    };
+    let grid = |estimators: Vec<EstimatorKind>| ExperimentGrid {
+        cases: vec![small().cases[0].clone()],
+        estimators,
+        ..small()
+    };
+    let both = grid(vec![EstimatorKind::Kbjae, EstimatorKind::Ibjae])
+        .run(1, &make, &|_, _| {})
+        .unwrap();
+    let alone: Vec<Record> = [EstimatorKind::Kbjae, EstimatorKind::Ibjae]
+        .into_iter()
+        .flat_map(|e| grid(vec![e]).run(1, &make, &|_, _| {}).unwrap())
+        .collect();
+    assert_eq!(both, alone);
+    assert!(
+        both[1].rmse_deg.mean > 2.0 * both[0].rmse_deg.mean,
+        "{both:?}"
+    );
+}
