@@ -26,7 +26,7 @@ use std::collections::VecDeque;
 
 use kflex_model::{
     Bounds, BuildTolerances, BuiltInstrument, Camera, Command, Frame, FrameParams, Instrument,
-    InstrumentShape, Plant, Roi, SceneRenderer,
+    InstrumentShape, Plant, Roi, SceneRenderer, TrajectorySampler,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -266,15 +266,25 @@ impl ClosedLoopTrace {
     /// # Errors
     /// [`crate::ControlError::NotEnoughData`] where no tick has an estimate.
     pub fn estimation_rmse_deg(&self) -> Result<f64> {
-        let (truth, estimate): (Vec<f64>, Vec<f64>) = self
-            .trace
-            .theta_a_deg
-            .iter()
-            .zip(&self.theta_hat_deg)
-            .filter_map(|(&a, h)| h.map(|h| (a, h)))
-            .unzip();
-        metrics::rmse(&truth, &estimate)
+        estimation_rmse_deg(&self.trace.theta_a_deg, &self.theta_hat_deg)
     }
+}
+
+/// RMSE of `estimate` against `truth` over the ticks that have an estimate
+/// (the two series aligned at their ends: an estimator's series may begin
+/// earlier, with the pre-roll), deg.
+///
+/// # Errors
+/// [`crate::ControlError::NotEnoughData`] where no tick has an estimate.
+pub(crate) fn estimation_rmse_deg(truth: &[f64], estimate: &[Option<f64>]) -> Result<f64> {
+    let estimate = &estimate[estimate.len().saturating_sub(truth.len())..];
+    let truth = &truth[truth.len().saturating_sub(estimate.len())..];
+    let (truth, estimate): (Vec<f64>, Vec<f64>) = truth
+        .iter()
+        .zip(estimate)
+        .filter_map(|(&a, h)| h.map(|h| (a, h)))
+        .unzip();
+    metrics::rmse(&truth, &estimate)
 }
 
 /// A frame on its way to the estimator.
@@ -330,11 +340,13 @@ impl RobotCamera {
         request: FrameRequest,
     ) -> Result<()> {
         // due: the next multiple of the frame period has been reached
-        // (a small tolerance absorbs the ticks' rounding)
-        if time_s + 1e-9 < self.next_capture as f64 / timing.rate_hz {
+        // (a small tolerance absorbs the ticks' rounding); one frame
+        // however many periods a long tick spans
+        let due = |n: u64| n as f64 / timing.rate_hz <= time_s + 1e-9;
+        if !due(self.next_capture) {
             return Ok(());
         }
-        while self.next_capture as f64 / timing.rate_hz <= time_s + 1e-9 {
+        while due(self.next_capture) {
             self.next_capture += 1;
         }
         if request == FrameRequest::None {
@@ -396,14 +408,19 @@ impl ClosedLoopScenario {
     /// [`FrameParams::validate`], [`BuildTolerances::validate`] and
     /// [`CompensatorConfig::validate`].
     pub fn validate(&self) -> Result<()> {
-        self.motion.sampler()?;
+        self.checked().map(|_| ())
+    }
+
+    /// [`ClosedLoopScenario::validate`], returning the prepared trajectory.
+    fn checked(&self) -> Result<TrajectorySampler> {
+        let sampler = self.motion.validate()?;
         self.camera.validate()?;
         self.frames.validate()?;
         self.tolerances.validate()?;
         if let Some(c) = &self.compensator {
             c.validate()?;
         }
-        Ok(())
+        Ok(sampler)
     }
 
     /// Runs the loop on `plant` (from its current state) with `estimator`,
@@ -421,9 +438,8 @@ impl ClosedLoopScenario {
         estimator: &mut dyn AngleEstimator,
         seed: u64,
     ) -> Result<ClosedLoopTrace> {
-        self.validate()?;
+        let sampler = self.checked()?;
         let motion = &self.motion;
-        let sampler = motion.sampler()?;
         let mut compensator = self.compensator.map(Compensator::new).transpose()?;
         let mut camera = RobotCamera::new(self, seed)?;
         estimator.reset();

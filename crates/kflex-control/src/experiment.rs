@@ -95,7 +95,8 @@ impl Trace {
 }
 
 impl OpenLoopScenario {
-    fn validate(&self) -> Result<TrajectorySampler> {
+    /// Checks the settings and prepares the trajectory (before anything moves).
+    pub(crate) fn validate(&self) -> Result<TrajectorySampler> {
         Bounds::open_closed(0.0, 1e4).check("periods", self.periods)?;
         Bounds::open_closed(0.0, 1e5).check("period_s", self.period_s)?;
         Bounds::open_closed(0.0, 10.0).check("dt_s", self.dt_s)?;
@@ -120,11 +121,6 @@ impl OpenLoopScenario {
     /// The number of evaluated ticks: `periods` periods of `dt_s`.
     pub(crate) fn evaluated_ticks(&self) -> usize {
         (self.periods * self.period_s / self.dt_s).round() as usize
-    }
-
-    /// Checks the settings and prepares the trajectory (before anything moves).
-    pub(crate) fn sampler(&self) -> Result<TrajectorySampler> {
-        self.validate()
     }
 
     /// Drives `plant` (from its current state) through the scenario and records the evaluated part.

@@ -441,13 +441,7 @@ impl Fanout {
     /// Member `i`'s estimation RMSE over the evaluated ticks of `trace`
     /// (the last ones it stepped), as [`ClosedLoopTrace::estimation_rmse_deg`].
     fn estimation_rmse_deg(&self, i: usize, trace: &ClosedLoopTrace) -> Result<f64> {
-        let n = trace.trace.theta_a_deg.len();
-        let hats = &self.hats[i];
-        let own = ClosedLoopTrace {
-            theta_hat_deg: hats[hats.len().saturating_sub(n)..].to_vec(),
-            ..trace.clone()
-        };
-        own.estimation_rmse_deg()
+        crate::closed_loop::estimation_rmse_deg(&trace.trace.theta_a_deg, &self.hats[i])
     }
 }
 
