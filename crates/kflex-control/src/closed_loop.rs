@@ -30,6 +30,7 @@ use kflex_model::{
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 
 use crate::compensator::{Compensator, CompensatorConfig};
@@ -180,7 +181,10 @@ impl AngleEstimator for NoisyTruth {
 
     fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>> {
         if let Some(frame) = tick.frame {
-            self.last = Some(frame.truth_theta_a_deg + self.sigma_deg * normal(&mut self.rng));
+            self.last = Some(
+                frame.truth_theta_a_deg
+                    + self.sigma_deg * self.rng.sample::<f64, _>(StandardNormal),
+            );
         }
         Ok(self.last)
     }
@@ -189,13 +193,6 @@ impl AngleEstimator for NoisyTruth {
         self.rng = ChaCha8Rng::seed_from_u64(self.seed);
         self.last = None;
     }
-}
-
-/// A standard normal draw (Box–Muller).
-fn normal(rng: &mut ChaCha8Rng) -> f64 {
-    let u1: f64 = rng.random_range(f64::MIN_POSITIVE..1.0);
-    let u2: f64 = rng.random();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
 /// One closed-loop run's settings.
