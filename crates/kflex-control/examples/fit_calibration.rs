@@ -32,6 +32,9 @@
 //! readings of the maximum hysteresis, and the leave-one-sheath-out table
 //! for `crates/kflex-model/CALIBRATION.md`.
 
+#[path = "../tests/support/loop_shape.rs"]
+mod loop_shape;
+
 use kflex_control::{GridRow, OpenLoopGrid};
 use kflex_model::PlantConfig;
 
@@ -282,36 +285,13 @@ fn cost(x: &[f64], which: &[usize]) -> f64 {
 /// mean over the branch's last 15 deg), third period, as the loop-shape test
 /// in `tests/plant_fidelity.rs` measures it. `None` if the plant fails.
 fn transition_deg(plant: PlantConfig, sheath_deg: f64) -> Option<f64> {
-    use kflex_model::{Command, Plant, Trajectory};
-    let mut plant = Plant::new(PlantConfig {
+    let slopes = loop_shape::falling_branch_slopes(PlantConfig {
         sheath_deg,
         ..plant
     })
     .ok()?;
-    let dt = 0.01;
-    let sampler = Trajectory::paper().sampler().ok()?;
-    let ticks = (3.0 / 0.159 / dt) as usize;
-    let (mut d, mut a) = (Vec::with_capacity(ticks), Vec::with_capacity(ticks));
-    for k in 0..ticks {
-        let s = sampler.sample(k as f64 * dt);
-        let command = Command {
-            theta_c_deg: s.theta_d_deg,
-            translation_mm: 10.0,
-        };
-        let state = plant.step(command, dt).ok()?;
-        d.push(s.theta_d_deg);
-        a.push(state.theta_a_deg);
-    }
-    let top = (ticks / 3..ticks).max_by(|&i, &j| d[i].total_cmp(&d[j]))?;
-    let mut slopes = Vec::new();
-    let mut i = top;
-    while i + 1 < ticks && d[i + 1] < d[i] {
-        slopes.push((d[top] - d[i + 1], (a[i] - a[i + 1]) / (d[i] - d[i + 1])));
-        i += 1;
-    }
-    let tail: Vec<f64> = slopes.iter().filter(|s| s.0 > 35.0).map(|s| s.1).collect();
-    let sliding = tail.iter().sum::<f64>() / tail.len() as f64;
-    let reach = |f: f64| slopes.iter().find(|s| s.1 >= f * sliding).map(|s| s.0);
+    let sliding = loop_shape::sliding_slope(&slopes);
+    let reach = |share| loop_shape::reach(&slopes, share, sliding);
     Some(reach(0.9)? - reach(0.1)?)
 }
 
@@ -533,14 +513,7 @@ fn print_rate_mirror_spread(plant: PlantConfig) {
             .collect();
         println!("| {sheath} | {} |", cells.join(" | "));
     }
-    let mirrored = OpenLoopScenario {
-        trajectory: Trajectory::Sine(Sine {
-            phase_rad: std::f64::consts::PI,
-            offset_deg: -25.0,
-            ..Sine::PAPER
-        }),
-        ..OpenLoopScenario::default()
-    };
+    let mirrored = loop_shape::mirrored();
     if let (Some(p), Some(m)) = (
         nominal(level, OpenLoopScenario::default()),
         nominal(level, mirrored),

@@ -3,8 +3,12 @@
 //! symmetric sheath, loops with rounded transitions, and metrics that grow
 //! with the bend the way Table IX's do.
 
-use kflex_control::{GridRow, OpenLoopGrid, OpenLoopScenario};
-use kflex_model::{Command, Plant, PlantConfig, Sine, Trajectory};
+#[path = "support/loop_shape.rs"]
+mod loop_shape;
+
+use kflex_control::{GridRow, OpenLoopGrid};
+use kflex_model::PlantConfig;
+use loop_shape::{falling_branch_slopes, mirrored, reach, sliding_slope};
 
 fn nominal() -> OpenLoopGrid {
     OpenLoopGrid {
@@ -17,18 +21,6 @@ fn nominal() -> OpenLoopGrid {
 
 fn run(grid: OpenLoopGrid) -> Vec<GridRow> {
     grid.run().unwrap()
-}
-
-/// The paper's input reflected through θ = 0: −(25 sin t + 25) deg.
-fn mirrored() -> OpenLoopScenario {
-    OpenLoopScenario {
-        trajectory: Trajectory::Sine(Sine {
-            phase_rad: std::f64::consts::PI,
-            offset_deg: -25.0,
-            ..Sine::PAPER
-        }),
-        ..OpenLoopScenario::default()
-    }
 }
 
 #[test]
@@ -125,58 +117,23 @@ fn rmse_grows_with_the_bend_and_the_loop_width_saturates() {
     }
 }
 
-/// Slope dθ_a/dθ_d along the falling branch after the command's top reversal,
-/// as (command travelled since the reversal, slope), on the third period.
-fn falling_branch_slopes(sheath_deg: f64) -> Vec<(f64, f64)> {
-    let mut plant = Plant::new(PlantConfig {
-        sheath_deg,
-        ..PlantConfig::default()
-    })
-    .unwrap();
-    let dt = 0.01;
-    let sampler = Trajectory::paper().sampler().unwrap();
-    let ticks = (3.0 / 0.159 / dt) as usize;
-    let (mut d, mut a) = (Vec::new(), Vec::new());
-    for k in 0..ticks {
-        let s = sampler.sample(k as f64 * dt);
-        let state = plant
-            .step(
-                Command {
-                    theta_c_deg: s.theta_d_deg,
-                    translation_mm: 10.0,
-                },
-                dt,
-            )
-            .unwrap();
-        d.push(s.theta_d_deg);
-        a.push(state.theta_a_deg);
-    }
-    let top = (ticks / 3..ticks)
-        .max_by(|&i, &j| d[i].total_cmp(&d[j]))
-        .unwrap();
-    let mut out = Vec::new();
-    let mut i = top;
-    while i + 1 < ticks && d[i + 1] < d[i] {
-        out.push((d[top] - d[i + 1], (a[i] - a[i + 1]) / (d[i] - d[i + 1])));
-        i += 1;
-    }
-    out
-}
-
 #[test]
 fn after_a_reversal_the_slope_rises_continuously_over_several_degrees() {
     // at 0 deg the sheath adds little friction and the drive's backlash shapes
     // the reversal: its flanks' engagement rounds the corner there
     for sheath_deg in [0.0, 90.0, 180.0, 270.0] {
-        let slopes = falling_branch_slopes(sheath_deg);
+        let slopes = falling_branch_slopes(PlantConfig {
+            sheath_deg,
+            ..PlantConfig::default()
+        })
+        .unwrap();
         // the sliding value: the mean slope over the last 15 deg of the branch
-        let tail: Vec<f64> = slopes.iter().filter(|s| s.0 > 35.0).map(|s| s.1).collect();
-        let sliding = tail.iter().sum::<f64>() / tail.len() as f64;
+        let sliding = sliding_slope(&slopes);
         assert!(
             sliding > 0.2,
             "sheath {sheath_deg}: sliding slope {sliding}"
         );
-        let reach = |f: f64| slopes.iter().find(|s| s.1 >= f * sliding).unwrap().0;
+        let reach = |share: f64| reach(&slopes, share, sliding).unwrap();
         let (p10, p90) = (reach(0.1), reach(0.9));
         assert!(
             p90 - p10 >= 3.0,
