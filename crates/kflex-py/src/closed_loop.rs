@@ -61,28 +61,31 @@ serde_class!(
         ) -> Result<PyClosedLoopTrace> {
             let scenario = self.inner.clone();
             let plant = &mut plant.inner;
-            let go = |estimator: &mut dyn AngleEstimator, plant: &mut kflex_model::Plant| {
+            // the estimator's borrow lives in one of these for the run
+            let (mut noisy, mut kbjae, mut lbhjae);
+            let estimator: &mut (dyn AngleEstimator + Send) =
+                if let Ok(e) = estimator.extract::<PyRefMut<'_, PyNoisyTruth>>() {
+                    noisy = e;
+                    &mut noisy.inner
+                } else if let Ok(e) = estimator.extract::<PyRefMut<'_, PyKbjae>>() {
+                    kbjae = e;
+                    &mut kbjae.inner
+                } else if let Ok(e) = estimator.extract::<PyRefMut<'_, PyLbhjae>>() {
+                    lbhjae = e;
+                    lbhjae.inner.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner)
+                } else {
+                    return Err(Error::Py(pyo3::exceptions::PyTypeError::new_err(format!(
+                        "estimator must be a NoisyTruth, Kbjae or Lbhjae, not {}",
+                        estimator.get_type().name().map_err(Error::Py)?
+                    ))));
+                };
+            let trace = py.detach(|| {
                 let trace = scenario.run(plant, estimator, seed)?;
                 if let Some(path) = &mcap_path {
                     trace.write_mcap(path, &scenario, seed)?;
                 }
                 Ok::<_, Error>(trace)
-            };
-            let trace = if let Ok(mut e) = estimator.extract::<PyRefMut<'_, PyNoisyTruth>>() {
-                let e = &mut e.inner;
-                py.detach(|| go(e, plant))?
-            } else if let Ok(mut e) = estimator.extract::<PyRefMut<'_, PyKbjae>>() {
-                let e = &mut e.inner;
-                py.detach(|| go(e, plant))?
-            } else if let Ok(mut e) = estimator.extract::<PyRefMut<'_, PyLbhjae>>() {
-                let e = e.inner.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
-                py.detach(|| go(e, plant))?
-            } else {
-                return Err(Error::Py(pyo3::exceptions::PyTypeError::new_err(format!(
-                    "estimator must be a NoisyTruth, Kbjae or Lbhjae, not {}",
-                    estimator.get_type().name().map_err(Error::Py)?
-                ))));
-            };
+            })?;
             Ok(PyClosedLoopTrace { inner: trace })
         }
     }
