@@ -327,14 +327,15 @@ impl RobotCamera {
         })
     }
 
-    /// Captures a frame if one is due at `time_s` (the end of a tick).
+    /// Captures a frame if one is due at `time_s` (the end of a tick), of
+    /// what `estimator` asks for then (asked only when a frame is due).
     fn capture(
         &mut self,
         timing: &CameraTiming,
         time_s: f64,
         command: Command,
         theta_a_deg: f64,
-        request: FrameRequest,
+        estimator: &dyn AngleEstimator,
     ) -> Result<()> {
         // due: the next multiple of the frame period has been reached
         // (a small tolerance absorbs the ticks' rounding); one frame
@@ -346,6 +347,7 @@ impl RobotCamera {
         while due(self.next_capture) {
             self.next_capture += 1;
         }
+        let request = estimator.frame_request(command);
         if request == FrameRequest::None {
             return Ok(());
         }
@@ -472,13 +474,7 @@ impl ClosedLoopScenario {
                 translation_mm: motion.translation_mm,
             };
             let state = plant.step(command, dt)?;
-            camera.capture(
-                &self.camera,
-                time_s,
-                command,
-                state.theta_a_deg,
-                estimator.frame_request(command),
-            )?;
+            camera.capture(&self.camera, time_s, command, state.theta_a_deg, estimator)?;
             let arrived = camera.arrived(time_s);
             let frame = arrived.as_ref().map(|f| CameraFrame {
                 image: f.image.as_ref(),
