@@ -3,7 +3,8 @@
 //! and on the bend and gripper alone, and the frames wrongly called empty.
 //!
 //! `cargo run --release -p kflex-estimate --example robustness_table`
-//! (with `KFLEX_WORST=1` it also names each condition's worst case, in the
+//! (with `KFLEX_SEGMENT_PARAMS='{"field": value, …}'` it measures other
+//! thresholds than the defaults; with `KFLEX_WORST=1` it also names each condition's worst case, in the
 //! region and on the bend and gripper, for `examples/segment_case.rs`)
 
 #[path = "../tests/matrix/mod.rs"]
@@ -16,7 +17,13 @@ use matrix::{Bench, Condition, cases, min_median};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut bench = Bench::default();
-    let mut segmenter = Segmenter::new(SegmentParams::default())?;
+    // thresholds to try: `KFLEX_SEGMENT_PARAMS='{"bright_ratio": 1.3}'`
+    // overrides the defaults' fields it names
+    let params = match std::env::var("KFLEX_SEGMENT_PARAMS") {
+        Ok(json) => serde_json::from_str::<SegmentParams>(&json)?,
+        Err(_) => SegmentParams::default(),
+    };
+    let mut segmenter = Segmenter::new(params)?;
     let cases = cases();
     println!(
         "{} cases a condition (backgrounds {:?} × θ {:?} deg × d {:?} mm), each in the \

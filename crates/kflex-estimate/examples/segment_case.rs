@@ -38,7 +38,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (frame, _) = bench.frame(case, condition);
     let roi = bench.roi_of(case);
     let truth = frame.instrument.crop(roi)?;
-    let mut segmenter = Segmenter::new(SegmentParams::default())?;
+    // as in `robustness_table`: `KFLEX_SEGMENT_PARAMS` overrides the fields it names
+    let params = match std::env::var("KFLEX_SEGMENT_PARAMS") {
+        Ok(json) => serde_json::from_str::<SegmentParams>(&json)?,
+        Err(_) => SegmentParams::default(),
+    };
+    let mut segmenter = Segmenter::new(params)?;
     let found = match segmenter.segment(&frame.rgb, frame.width, frame.height, roi) {
         Ok(s) => Some(s.full.clone()),
         Err(e) => {

@@ -71,22 +71,44 @@ fn taped_part_is_lost_and_the_rest_found() {
         let visible = crop(&f.instrument, *ROI);
         let tape = crop(&f.occluder, *ROI);
         let iou = seg.full.iou(&visible).unwrap();
-        let on_tape = seg
-            .full
-            .data()
-            .iter()
-            .zip(tape.data())
-            .filter(|(s, t)| **s != 0 && **t != 0)
-            .count();
+        // a 2×2 cell across the tape's edge is a mixture of steel and tape
+        // and takes one class whole: the tape's own pixels are those more
+        // than one pixel inside its edge
+        let inside = |x: u32, y: u32| {
+            (x.saturating_sub(1)..=(x + 1).min(tape.width() - 1)).all(|u| {
+                (y.saturating_sub(1)..=(y + 1).min(tape.height() - 1)).all(|v| tape.get(u, v))
+            })
+        };
+        let (mut on_tape, mut on_edge, mut tape_px) = (0usize, 0usize, 0usize);
+        for y in 0..tape.height() {
+            for x in 0..tape.width() {
+                if tape.get(x, y) {
+                    let core = inside(x, y);
+                    tape_px += usize::from(core);
+                    if seg.full.get(x, y) {
+                        on_tape += usize::from(core);
+                        on_edge += usize::from(!core);
+                    }
+                }
+            }
+        }
         eprintln!(
-            "tape {fraction} at {position}: IoU vs visible part {iou:.3}, {on_tape} px on the tape"
+            "tape {fraction} at {position}: IoU vs visible part {iou:.3}, {on_tape} px inside \
+             the tape and {on_edge} on its edge read as instrument"
         );
-        // measured on camera v2's frames: 0.980 / 0.977 / 0.992, at most 34 px on the tape
+        // measured: 0.973 / 0.968 / 0.988, no pixel inside the tape, 75 / 32
+        // / 30 of its edge's (12 / 12 / 12 before the segmentation grew the
+        // instrument into the regions that border it: a cell half steel,
+        // half tape now joins the steel; about one pixel row along each of
+        // the tape's two edges)
         assert!(iou >= 0.85, "IoU against the visible part {iou}");
         assert!(
-            on_tape * 50 < tape.count().max(1),
-            "the red tape must not read as instrument: {on_tape} of {} px",
-            tape.count()
+            on_tape * 100 < tape_px.max(1),
+            "the red tape must not read as instrument: {on_tape} of {tape_px} px"
+        );
+        assert!(
+            on_edge <= 2 * tape.width() as usize,
+            "more than a pixel row along each of the tape's edges: {on_edge} px"
         );
     }
 }
@@ -417,14 +439,16 @@ fn random_4k_tiles_are_found_exactly() {
                 truth[y * w + x] = u8::from(metal);
             }
         }
-        let seg = segment(
-            &rgb,
-            w as u32,
-            h as u32,
-            WHOLE_4K,
-            &SegmentParams::default(),
-        )
-        .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        // tiles, not an instrument: the rules that use the instrument's
+        // shape (one object, no holes, growth into what borders it) are off
+        let tiles_only = SegmentParams {
+            grow_share: 0.5,
+            fill_holes: false,
+            min_component_of_largest: 0.0,
+            ..SegmentParams::default()
+        };
+        let seg = segment(&rgb, w as u32, h as u32, WHOLE_4K, &tiles_only)
+            .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         let truth = Mask::from_raw(w as u32, h as u32, truth).unwrap();
         let wrong = seg
             .full
@@ -438,4 +462,142 @@ fn random_4k_tiles_are_found_exactly() {
             "seed {seed}: {wrong} pixels differ from the tiles"
         );
     }
+}
+
+/// Growth into what borders the instrument: a block of steel's colour mixed
+/// 30 / 70 with the tissue's (past half way from the steel's chromaticity to
+/// the tissue's, within `grow_share`) joins the instrument where it hangs
+/// from the steel, and stays tissue where it lies apart; with growth off it
+/// is tissue in both places.
+#[test]
+fn a_tinted_part_that_hangs_from_the_steel_joins_it() {
+    let (w, h) = (200usize, 120usize);
+    let (steel, tinted) = ([150u8, 153, 160], [171u8, 95, 90]);
+    let rgb = blocks(
+        w,
+        h,
+        &[
+            (steel, [0, 50, 120, 70]),
+            (tinted, [120, 44, 150, 74]),
+            (tinted, [165, 10, 195, 40]),
+        ],
+    );
+    let whole = Roi::whole(w as u32, h as u32);
+    let share = |params: &SegmentParams| {
+        let seg = segment(&rgb, w as u32, h as u32, whole, params).unwrap();
+        (
+            share_set(&seg.full, [120, 44, 150, 74]),
+            share_set(&seg.full, [165, 10, 195, 40]),
+        )
+    };
+    let (hanging, apart) = share(&SegmentParams::default());
+    assert!(hanging > 0.95, "the hanging block: {hanging}");
+    assert!(apart < 0.05, "the block apart: {apart}");
+    let off = SegmentParams {
+        grow_share: 0.5,
+        ..SegmentParams::default()
+    };
+    let (hanging, apart) = share(&off);
+    assert!(
+        hanging < 0.05 && apart < 0.05,
+        "growth off: {hanging} {apart}"
+    );
+}
+
+/// Tissue-coloured pixels drawn from rectangles of `(colour, [x0, y0, x1, y1])`
+/// over a `w × h` tissue frame, with a little seeded noise.
+fn blocks(w: usize, h: usize, drawn: &[([u8; 3], [usize; 4])]) -> Vec<u8> {
+    let mut rgb = vec![0u8; 3 * w * h];
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    for y in 0..h {
+        for x in 0..w {
+            let c = drawn
+                .iter()
+                .rev()
+                .find(|(_, [x0, y0, x1, y1])| (*x0..*x1).contains(&x) && (*y0..*y1).contains(&y))
+                .map_or([180, 70, 60], |d| d.0);
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let jitter = (state >> 62) as u8;
+            for (k, v) in c.iter().enumerate() {
+                rgb[3 * (y * w + x) + k] = v + jitter;
+            }
+        }
+    }
+    rgb
+}
+
+/// Share of the pixels of `[x0, y0, x1, y1]` set in `mask`.
+fn share_set(mask: &Mask, [x0, y0, x1, y1]: [u32; 4]) -> f64 {
+    let set = (x0..x1)
+        .flat_map(|x| (y0..y1).map(move |y| (x, y)))
+        .filter(|&(x, y)| mask.get(x, y))
+        .count();
+    set as f64 / f64::from((x1 - x0) * (y1 - y0))
+}
+
+/// A ring of steel around tissue: the tissue inside is a hole and is filled;
+/// a bay of tissue open to the frame's edge is not. With `fill_holes` off,
+/// both stay tissue.
+#[test]
+fn holes_in_the_instrument_are_filled_and_bays_are_not() {
+    let (w, h) = (160usize, 120usize);
+    let steel = [150u8, 153, 160];
+    let tissue = [180u8, 70, 60];
+    let rgb = blocks(
+        w,
+        h,
+        &[
+            // a ring from the left edge: steel 0..100 × 20..100, tissue inside
+            (steel, [0, 20, 100, 100]),
+            (tissue, [40, 40, 80, 80]),
+            // a bay cut into it from the bottom edge
+            (tissue, [10, 80, 30, 120]),
+        ],
+    );
+    let whole = Roi::whole(w as u32, h as u32);
+    let seg = segment(&rgb, w as u32, h as u32, whole, &SegmentParams::default()).unwrap();
+    assert!(share_set(&seg.full, [40, 40, 80, 80]) > 0.99, "the hole");
+    assert!(share_set(&seg.full, [10, 100, 30, 120]) < 0.01, "the bay");
+    let off = SegmentParams {
+        fill_holes: false,
+        ..SegmentParams::default()
+    };
+    let seg = segment(&rgb, w as u32, h as u32, whole, &off).unwrap();
+    assert!(share_set(&seg.full, [40, 40, 80, 80]) < 0.01, "holes kept");
+}
+
+/// Steel apart from the largest part is dropped when it holds less than
+/// `min_component_of_largest` of it, and kept when it holds more (the part
+/// beyond tape over the instrument's middle).
+#[test]
+fn parts_much_smaller_than_the_instrument_are_dropped() {
+    let (w, h) = (200usize, 120usize);
+    let steel = [150u8, 153, 160];
+    // the largest: 100 × 40 = 4,000 px; a speck of 14 × 20 = 280 px (7 %)
+    // and a part of 40 × 40 = 1,600 px (40 %)
+    let rgb = blocks(
+        w,
+        h,
+        &[
+            (steel, [0, 40, 100, 80]),
+            (steel, [140, 10, 154, 30]),
+            (steel, [140, 70, 180, 110]),
+        ],
+    );
+    let whole = Roi::whole(w as u32, h as u32);
+    let seg = segment(&rgb, w as u32, h as u32, whole, &SegmentParams::default()).unwrap();
+    assert!(share_set(&seg.full, [0, 40, 100, 80]) > 0.99, "the largest");
+    assert!(share_set(&seg.full, [140, 10, 154, 30]) < 0.01, "the speck");
+    assert!(share_set(&seg.full, [140, 70, 180, 110]) > 0.99, "the part");
+    let off = SegmentParams {
+        min_component_of_largest: 0.0,
+        ..SegmentParams::default()
+    };
+    let seg = segment(&rgb, w as u32, h as u32, whole, &off).unwrap();
+    assert!(
+        share_set(&seg.full, [140, 10, 154, 30]) > 0.99,
+        "the speck kept"
+    );
 }

@@ -9,7 +9,16 @@
 //! (green against blue): a colour's hue and saturation without its
 //! brightness, so an illumination gain leaves it where it is.
 
+use super::graph;
 use super::{Scratch, SegmentParams};
+
+/// Rounds of growing the instrument into the regions that border it (step 4b).
+const GROW_ROUNDS: usize = 2;
+
+/// How far from the line through the metal's and the tissue's colours a
+/// region that grows into the instrument may lie, as a share of their
+/// distance (step 4b).
+const GROW_WIDTH: f32 = 0.3;
 
 /// Bins of the chromaticity histograms, over `[-1, 1]`.
 const BINS: usize = 512;
@@ -86,110 +95,21 @@ fn metal_side(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], share: f32) -> bo
     ((ch[0] - metal[0]) * d[0] + (ch[1] - metal[1]) * d[1]) < share * dd
 }
 
-/// Calls `f(a, b)` for the merged regions on either side of every cell
-/// edge (right and down neighbours) leaving a cell of `window` (`[x0, y0,
-/// x1, y1]`, inclusive) where they differ: `labels` are the cells' leaves,
-/// `parent` each leaf's region (fully compressed). Cells of one leaf are
-/// skipped without looking their region up.
-#[inline(always)]
-fn for_each_edge(
-    labels: &[u32],
-    parent: &[u32],
-    cols: usize,
-    [x0, y0, x1, y1]: [usize; 4],
-    mut f: impl FnMut(usize, usize),
-) {
-    let rows = labels.len() / cols;
-    for y in y0..=y1 {
-        for x in x0..=x1 {
-            let la = labels[y * cols + x];
-            let right = (x + 1 < cols).then(|| labels[y * cols + x + 1]);
-            let down = (y + 1 < rows).then(|| labels[(y + 1) * cols + x]);
-            for lb in [right, down].into_iter().flatten() {
-                if la != lb {
-                    let (a, b) = (parent[la as usize], parent[lb as usize]);
-                    if a != b {
-                        f(a as usize, b as usize);
-                    }
-                }
-            }
-        }
-    }
-}
-
-/// Calls `f(r, other)` for every cell edge between a region `r` of class
-/// `class` and another region: each such region's edges are walked in its
-/// own box (one cell wider above and to the left), which for the few small
-/// regions this is asked of (highlights, clipped light) is far less than
-/// the whole grid; where the boxes add up to more than the grid, the grid is
-/// walked once instead.
-#[allow(clippy::too_many_arguments)]
-fn edges_of_class(
-    labels: &[u32],
-    parent: &[u32],
-    cols: usize,
-    leaf_box: &[[u32; 4]],
-    boxes: &mut Vec<[u32; 4]>,
-    region_class: &[u8],
-    class: u8,
-    mut f: impl FnMut(usize, usize),
-) {
-    if cols == 0 || labels.is_empty() {
-        return;
-    }
-    boxes.clear();
-    boxes.resize(region_class.len(), [u32::MAX, u32::MAX, 0, 0]);
-    for (leaf, b) in leaf_box.iter().enumerate() {
-        let r = parent[leaf] as usize;
-        if region_class[r] == class {
-            let c = &mut boxes[r];
-            *c = [
-                c[0].min(b[0]),
-                c[1].min(b[1]),
-                c[2].max(b[2]),
-                c[3].max(b[3]),
-            ];
-        }
-    }
-    let area: usize = boxes
-        .iter()
-        .filter(|c| c[0] != u32::MAX)
-        .map(|c| (c[2] - c[0] + 2) as usize * (c[3] - c[1] + 2) as usize)
-        .sum();
-    if area > labels.len() {
-        let whole = [0, 0, cols - 1, labels.len() / cols - 1];
-        for_each_edge(labels, parent, cols, whole, |a, b| {
-            if region_class[a] == class {
-                f(a, b);
-            }
-            if region_class[b] == class {
-                f(b, a);
-            }
-        });
-        return;
-    }
-    for (r, c) in boxes.iter().enumerate() {
-        if c[0] == u32::MAX {
-            continue;
-        }
-        let window = [
-            c[0].saturating_sub(1) as usize,
-            c[1].saturating_sub(1) as usize,
-            c[2] as usize,
-            c[3] as usize,
-        ];
-        for_each_edge(labels, parent, cols, window, |a, b| {
-            if a == r {
-                f(r, b);
-            } else if b == r {
-                f(r, a);
-            }
-        });
-    }
+/// Whether chromaticity `ch` lies within `width` times the length of the
+/// segment from `metal` to `tissue` of the line through them: a mixture of
+/// the two lies on it, a mixture of the metal with something else (red
+/// tape, a dark vessel) off it.
+fn near_line(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], width: f32) -> bool {
+    let d = [tissue[0] - metal[0], tissue[1] - metal[1]];
+    let v = [ch[0] - metal[0], ch[1] - metal[1]];
+    let cross = d[0] * v[1] - d[1] * v[0];
+    // |cross| / |d| is the distance from the line
+    cross * cross <= width * width * (d[0] * d[0] + d[1] * d[1]).powi(2)
 }
 
 /// Sorts every merged region (root of `s.parent`) into instrument or tissue
-/// and marks the cells of instrument regions in `s.cells`:
+/// (`s.instrument`, per region), after building the regions' graph
+/// (`graph::build`):
 ///
 /// 1. regions darker than [`SegmentParams::min_relative_value`] of the
 ///    region of interest's median brightness are tissue (lumen, shadow);
@@ -212,20 +132,23 @@ fn edges_of_class(
 ///    the way from `M` to `T`);
 ///    then `T` becomes the pixel-weighted median of the tissue class and the
 ///    regions are sorted again (two rounds);
+///    then (4b) a region that borders the instrument joins it where it lies
+///    within [`SegmentParams::grow_share`] of the way from `M` to `T`, near
+///    the line through them, and is about as bright as the instrument it
+///    borders ([`SegmentParams::grow_brightness`]; not where `T` lies within
+///    [`SegmentParams::grow_separation`] of `M`), two rounds;
 /// 5. a specular region takes the class that borders most of it.
-pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Classes {
+pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize, rows: usize) -> Classes {
+    graph::build(s, cols, rows);
     let Scratch {
         regions,
         parent,
         instrument,
         labels,
-        cells,
         region_class,
-        votes,
-        neighbours,
         roots,
-        leaf_box,
-        boxes,
+        adjacency,
+        adjacency_start,
         ..
     } = s;
     // 1–3: the frame's statistics
@@ -274,27 +197,17 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
             }
         }
         if any {
-            neighbours.clear();
-            neighbours.resize(regions.len(), [0.0, 0.0]);
-            edges_of_class(
-                labels,
-                parent,
-                cols,
-                leaf_box,
-                boxes,
-                region_class,
-                CANDIDATE,
-                |r, other| {
-                    neighbours[r][0] += regions[other].lum;
-                    neighbours[r][1] += 1.0;
-                },
-            );
             for &i in roots.iter() {
                 let i = i as usize;
                 if region_class[i] == CANDIDATE {
-                    let [sum, edges] = neighbours[i];
+                    // the brightness across its cell edges
+                    let (mut sum, mut edges) = (0.0f32, 0u32);
+                    for &[o, n] in graph::neighbours(adjacency, adjacency_start, i) {
+                        sum += regions[o as usize].lum * n as f32;
+                        edges += n;
+                    }
                     region_class[i] =
-                        if edges > 0.0 && regions[i].lum > p.highlight_ratio * sum / edges {
+                        if edges > 0 && regions[i].lum > p.highlight_ratio * sum / edges as f32 {
                             CLIPPED
                         } else {
                             BRIGHT
@@ -411,145 +324,67 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize) -> Class
             region_class[i] == BRIGHT && metal_side(ch, metal, tissue, share(regions[i].lum)),
         );
     }
-    // 5: clipped regions and highlights take their neighbours' class, by
-    // shared cell edges
-    if roots.iter().any(|&i| region_class[i as usize] == CLIPPED) {
-        votes.clear();
-        votes.resize(regions.len(), [0, 0]);
-        edges_of_class(
-            labels,
-            parent,
-            cols,
-            leaf_box,
-            boxes,
-            region_class,
-            CLIPPED,
-            |r, other| {
-                if region_class[other] != CLIPPED {
-                    votes[r][usize::from(instrument[other])] += 1;
+    // 4b: the instrument is one object: a region that borders it and lies
+    // within `grow_share` of the way from the metal to the tissue joins it
+    // (a far gripper or a joint's disc tinted by the tissue it reflects);
+    // bright regions keep their stricter rule
+    if p.grow_share > 0.5 && dist2(metal, tissue) > p.grow_separation.powi(2) {
+        for _ in 0..GROW_ROUNDS {
+            let mut grew = false;
+            for &i in roots.iter() {
+                let (i, r) = (i as usize, &regions[i as usize]);
+                if region_class[i] != BRIGHT
+                    || instrument[i] != 0
+                    || r.lum > p.bright_ratio * median_l
+                    || !metal_side(r.chroma, metal, tissue, p.grow_share)
+                    || !near_line(r.chroma, metal, tissue, GROW_WIDTH)
+                {
+                    continue;
                 }
-            },
-        );
-        for &i in roots.iter() {
-            let i = i as usize;
-            if region_class[i] == CLIPPED {
-                instrument[i] = u8::from(votes[i][1] > votes[i][0]);
+                // the instrument's brightness over the cell edges it shares
+                // with this region
+                let (mut sum, mut edges) = (0.0f32, 0u32);
+                for &[o, n] in graph::neighbours(adjacency, adjacency_start, i) {
+                    if instrument[o as usize] == 1 {
+                        sum += regions[o as usize].lum * n as f32;
+                        edges += n;
+                    }
+                }
+                let around = sum / edges.max(1) as f32;
+                if edges > 0
+                    && r.lum <= p.grow_brightness * around
+                    && r.lum * p.grow_brightness >= around
+                {
+                    // 2: grown this round (its neighbours see it next round)
+                    instrument[i] = 2;
+                    grew = true;
+                }
+            }
+            instrument
+                .iter_mut()
+                .filter(|v| **v == 2)
+                .for_each(|v| *v = 1);
+            if !grew {
+                break;
             }
         }
     }
-    cells.clear();
-    cells.extend(
-        labels
-            .iter()
-            .map(|&l| instrument[parent[l as usize] as usize]),
-    );
+    // 5: clipped regions and highlights take their neighbours' class, by
+    // shared cell edges
+    for &i in roots.iter() {
+        let i = i as usize;
+        if region_class[i] == CLIPPED {
+            let mut votes = [0u32; 2];
+            for &[o, n] in graph::neighbours(adjacency, adjacency_start, i) {
+                if region_class[o as usize] != CLIPPED {
+                    votes[usize::from(instrument[o as usize])] += n;
+                }
+            }
+            instrument[i] = u8::from(votes[1] > votes[0]);
+        }
+    }
     Classes {
         instrument: found,
         tissue,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use rand::{Rng, SeedableRng};
-
-    /// Every edge between a region of the class and another, counted by
-    /// brute force over the grid.
-    fn brute(labels: &[u32], parent: &[u32], cols: usize, class_of: &[u8], class: u8) -> Vec<u32> {
-        let n = class_of.len();
-        let mut count = vec![0u32; n * n];
-        let rows = labels.len() / cols;
-        for y in 0..rows {
-            for x in 0..cols {
-                let a = parent[labels[y * cols + x] as usize] as usize;
-                let mut pair = |b: usize| {
-                    if a != b {
-                        if class_of[a] == class {
-                            count[a * n + b] += 1;
-                        }
-                        if class_of[b] == class {
-                            count[b * n + a] += 1;
-                        }
-                    }
-                };
-                if x + 1 < cols {
-                    pair(parent[labels[y * cols + x + 1] as usize] as usize);
-                }
-                if y + 1 < rows {
-                    pair(parent[labels[(y + 1) * cols + x] as usize] as usize);
-                }
-            }
-        }
-        count
-    }
-
-    #[test]
-    fn walking_boxes_finds_the_edges_the_whole_grid_has() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        for (cols, rows, roots, small) in [(17, 11, 6, true), (17, 11, 6, false), (40, 3, 9, true)]
-        {
-            // one leaf a cell; leaves grouped into regions: blobs around a
-            // few seeds when `small` (the box walk), else scattered (the
-            // grid walk, the boxes adding up to more than the grid)
-            let n = cols * rows;
-            let seeds: Vec<(usize, usize)> = (0..roots)
-                .map(|_| (rng.random_range(0..cols), rng.random_range(0..rows)))
-                .collect();
-            let region: Vec<usize> = (0..n)
-                .map(|i| {
-                    let (x, y) = (i % cols, i / cols);
-                    if small {
-                        seeds
-                            .iter()
-                            .position(|&(sx, sy)| sx.abs_diff(x) <= 2 && sy.abs_diff(y) <= 1)
-                            .unwrap_or(roots)
-                    } else {
-                        rng.random_range(0..=roots)
-                    }
-                })
-                .collect();
-            // each region's root: its first leaf
-            let mut first = vec![usize::MAX; roots + 1];
-            for (i, &r) in region.iter().enumerate() {
-                if first[r] == usize::MAX {
-                    first[r] = i;
-                }
-            }
-            let parent: Vec<u32> = region.iter().map(|&r| first[r] as u32).collect();
-            let labels: Vec<u32> = (0..n as u32).collect();
-            let leaf_box: Vec<[u32; 4]> = (0..n)
-                .map(|i| {
-                    let (x, y) = ((i % cols) as u32, (i / cols) as u32);
-                    [x, y, x, y]
-                })
-                .collect();
-            let mut class_of = vec![0u8; n];
-            for (r, &leaf) in first.iter().enumerate() {
-                if leaf != usize::MAX {
-                    class_of[leaf] = if r < roots && r % 2 == 0 { 3 } else { 1 };
-                }
-            }
-            let mut got = vec![0u32; n * n];
-            let mut boxes = Vec::new();
-            edges_of_class(
-                &labels,
-                &parent,
-                cols,
-                &leaf_box,
-                &mut boxes,
-                &class_of,
-                3,
-                |r, o| {
-                    got[r * n + o] += 1;
-                },
-            );
-            assert_eq!(
-                got,
-                brute(&labels, &parent, cols, &class_of, 3),
-                "{cols}×{rows} small {small}"
-            );
-            assert!(got.iter().any(|&c| c > 0));
-        }
     }
 }

@@ -2,6 +2,7 @@
 //! split, merge, threshold — giving the 48×48 binary image IBJAE consumes.
 
 mod classify;
+mod graph;
 mod pyramid;
 mod regions;
 mod resample;
@@ -12,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{EstimateError, Result};
 use classify::classify;
 use pyramid::{Level, Region2d, pyramid};
-use regions::{Region, drop_small_components, merge, split};
+use regions::{Region, merge, split};
 use resample::resample_cells;
 
 /// Segmentation thresholds. Colours on the [0, 1] scale.
@@ -61,6 +62,20 @@ pub struct SegmentParams {
     pub bright_ratio: f32,
     /// See [`SegmentParams::bright_ratio`].
     pub bright_metal_share: f32,
+    /// A region that borders the instrument joins it where its chromaticity
+    /// lies within this share of the way from the metal's to the tissue's
+    /// (other regions: half the way). The instrument is one object; a far
+    /// gripper or a joint's disc that reflects the tissue around it lies
+    /// past half way but borders the rest. At most 0.5 turns this off.
+    pub grow_share: f32,
+    /// The growth of [`SegmentParams::grow_share`] applies only where the
+    /// tissue's chromaticity lies at least this far from the metal's: on
+    /// grey, pale or white tissue a share of the way is within the noise.
+    pub grow_separation: f32,
+    /// A region grows into the instrument only where it is at most this many
+    /// times as bright as the instrument it borders (a far gripper is no
+    /// brighter than the joint it hangs from; the pale tissue around it is).
+    pub grow_brightness: f32,
     /// Smallest brightness of an instrument region, as a share of the median
     /// brightness of the region of interest (darker is lumen or shadow).
     pub min_relative_value: f32,
@@ -83,8 +98,15 @@ pub struct SegmentParams {
     /// and a small steel part (a far gripper) brighter than the tissue
     /// around it is not.
     pub highlight_min_value: f32,
+    /// Tissue enclosed by instrument (out of reach of the tissue on the
+    /// region's border) is instrument: the silhouette has no holes.
+    pub fill_holes: bool,
     /// Smallest instrument component kept, as a share of the region of interest.
     pub min_component: f32,
+    /// Smallest instrument component kept, as a share of the largest: the
+    /// instrument is one object, or two where tape hides its middle (the
+    /// part beyond the tape is then a third or more of the rest).
+    pub min_component_of_largest: f32,
     /// Smallest instrument share of the region of interest that counts as found.
     pub min_instrument: f32,
     /// Side of the output image, px (the paper: 48).
@@ -103,13 +125,18 @@ impl Default for SegmentParams {
             metal_chroma: classify::chroma([0.787, 0.800, 0.825]),
             bright_ratio: 1.2,
             bright_metal_share: 0.3,
+            grow_share: 0.65,
+            grow_separation: 0.08,
+            grow_brightness: 1.4,
             min_relative_value: 0.15,
             clip_value: 0.94,
             saturated_value: 0.97,
             highlight_ratio: 1.2,
             highlight_max: 0.015,
             highlight_min_value: 0.7,
+            fill_holes: true,
             min_component: 0.004,
+            min_component_of_largest: 0.1,
             min_instrument: 0.002,
             out: 48,
         }
@@ -204,8 +231,8 @@ pub fn segment(
 ///    each widened by what the frame's own noise explains for regions of
 ///    their sizes ([`SegmentParams::merge_noise_z`]), become one region
 ///    (union–find over the leaves' adjacency, on the regions' running means). No leaf is smaller than
-///    a 2×2 cell, so merging, thresholding and the component filter work on the
-///    grid of cells, a quarter of the pixels.
+///    a 2×2 cell, so merging and thresholding work on the grid of cells, a
+///    quarter of the pixels.
 /// 4. **Threshold**, from the frame's own statistics: each merged region's
 ///    mean colour is taken to chromaticity (hue and saturation without
 ///    brightness, so a gain leaves it unchanged), and a region is instrument
@@ -220,10 +247,18 @@ pub fn segment(
 ///    ([`SegmentParams::highlight_ratio`]) take the class of the regions
 ///    around them. A frame of one colour has nothing to tell apart and finds no
 ///    instrument, whatever the colour.
-///    Tape is red, so a taped part is lost, as in the paper. Connected instrument
-///    components smaller than [`SegmentParams::min_component`] of the region
-///    (specular spots on wet mucosa) are dropped.
-/// 5. The result is resampled to `out × out` (area vote: a cell is set where at
+///    Tape is red, so a taped part is lost, as in the paper.
+/// 5. **The instrument is one object**, on the graph of the merged regions
+///    (which share cell edges, and how many): a region that borders the
+///    instrument joins it where it lies a little past half way toward the
+///    tissue's colour and is about as bright as the steel it borders
+///    ([`SegmentParams::grow_share`]: a far gripper tinted by the tissue it
+///    reflects); tissue enclosed by instrument is instrument
+///    ([`SegmentParams::fill_holes`]); connected components smaller than
+///    [`SegmentParams::min_component`] of the region or
+///    [`SegmentParams::min_component_of_largest`] of the largest component
+///    (specular spots and streaks on wet mucosa) are dropped.
+/// 6. The result is resampled to `out × out` (area vote: a cell is set where at
 ///    least half its pixels are). Fewer than [`SegmentParams::min_instrument`]
 ///    of the region's pixels set: [`EstimateError::NoInstrument`].
 #[derive(Debug)]
@@ -252,16 +287,23 @@ struct Scratch {
     instrument: Vec<u8>,
     /// Per region: dark, bright or clipped (see `classify`).
     region_class: Vec<u8>,
-    /// Per clipped region: cell edges shared with tissue and with instrument.
-    votes: Vec<[u32; 2]>,
-    /// Per region: summed brightness of the regions across its cell edges, and the edges.
-    neighbours: Vec<[f32; 2]>,
     /// The merged regions (roots of `parent`).
     roots: Vec<u32>,
     /// Per leaf: its cells' box `[x0, y0, x1, y1]`, inclusive.
     leaf_box: Vec<[u32; 4]>,
-    /// Per region: the box of its cells (for the regions whose edges are walked).
-    boxes: Vec<[u32; 4]>,
+    /// Leaf pairs across cell edges, `[a, b, edges]`, recorded by the merge.
+    leaf_edges: Vec<[u32; 3]>,
+    /// Per cell column: the last leaf pair recorded across its right edge
+    /// and where (`leaf_edges` index), to count a vertical boundary's run.
+    last_right: Vec<(u32, u32, u32)>,
+    /// The merged regions' graph (`graph::build`): neighbours and shared
+    /// cell edges, region `r`'s from `adjacency_start[r]` to `adjacency_start[r + 1]`.
+    adjacency: Vec<[u32; 2]>,
+    adjacency_start: Vec<u32>,
+    /// Per region: whether it has a cell on the region of interest's edge.
+    on_border: Vec<bool>,
+    /// Per instrument component: its regions' range in `component`.
+    component_spans: Vec<(usize, usize)>,
     cells: Vec<u8>,
     seen: Vec<bool>,
     flood: Vec<usize>,
@@ -280,11 +322,13 @@ impl Segmenter {
     /// `[0, 3]`, `merge_distance` outside `[0, 2]`, `reference_brightness`
     /// outside `[0.01, 3]`, `merge_noise_z` outside `[0, 10]`, `merge_chroma`
     /// outside `[0, 2]`, either `metal_chroma` component outside `[-1, 1]`,
-    /// `bright_ratio` outside `[0, 100]`, `bright_metal_share`,
-    /// `min_relative_value`, `clip_value` or `saturated_value` outside
-    /// `[0, 1]`, `highlight_ratio` outside `[0, 100]`, `highlight_max`,
-    /// `highlight_min_value`,
-    /// `min_component` or `min_instrument` outside `[0, 1]`, `out` outside
+    /// `bright_ratio` outside `[0, 100]`, `bright_metal_share` or
+    /// `grow_share` outside `[0, 1]`, `grow_separation` outside `[0, 2]`,
+    /// `grow_brightness` outside `[0, 100]`, `min_relative_value`,
+    /// `clip_value` or `saturated_value` outside `[0, 1]`,
+    /// `highlight_ratio` outside `[0, 100]`, `highlight_max`,
+    /// `highlight_min_value`, `min_component`, `min_component_of_largest`
+    /// or `min_instrument` outside `[0, 1]`, `out` outside
     /// `[1, 4096]` px. `min_block` is not checked (blocks stop at 2 px
     /// anyway).
     pub fn new(params: SegmentParams) -> Result<Self> {
@@ -303,6 +347,9 @@ impl Segmenter {
         check("metal_chroma[1]", params.metal_chroma[1], -1.0, 1.0)?;
         check("bright_ratio", params.bright_ratio, 0.0, 100.0)?;
         check("bright_metal_share", params.bright_metal_share, 0.0, 1.0)?;
+        check("grow_share", params.grow_share, 0.0, 1.0)?;
+        check("grow_separation", params.grow_separation, 0.0, 2.0)?;
+        check("grow_brightness", params.grow_brightness, 0.0, 100.0)?;
         check("min_relative_value", params.min_relative_value, 0.0, 1.0)?;
         check("clip_value", params.clip_value, 0.0, 1.0)?;
         check("saturated_value", params.saturated_value, 0.0, 1.0)?;
@@ -310,6 +357,12 @@ impl Segmenter {
         check("highlight_max", params.highlight_max, 0.0, 1.0)?;
         check("highlight_min_value", params.highlight_min_value, 0.0, 1.0)?;
         check("min_component", params.min_component, 0.0, 1.0)?;
+        check(
+            "min_component_of_largest",
+            params.min_component_of_largest,
+            0.0,
+            1.0,
+        )?;
         check("min_instrument", params.min_instrument, 0.0, 1.0)?;
         Bounds::closed(1.0, 4096.0).check("out", f64::from(params.out))?;
         Ok(Self {
@@ -410,9 +463,25 @@ impl Segmenter {
         split(s, depth, rw, rh, scaled);
         let noise = p.merge_noise_z * noise_sigma(&region);
         merge(s, cols, rows, &scaled, noise);
-        classify(s, &p, cols);
-        let min_component = (p.min_component * (rw * rh) as f32).ceil() as usize;
-        let count = drop_small_components(s, cols, rows, rw, rh, min_component);
+        classify(s, &p, cols, rows);
+        if p.fill_holes {
+            graph::fill_holes(s);
+        }
+        let min_component = (p.min_component * (rw * rh) as f32).ceil();
+        let count = graph::keep_components(s, min_component, p.min_component_of_largest);
+        let Scratch {
+            cells,
+            labels,
+            parent,
+            instrument,
+            ..
+        } = &mut *s;
+        cells.clear();
+        cells.extend(
+            labels
+                .iter()
+                .map(|&l| instrument[parent[l as usize] as usize]),
+        );
         let min = (p.min_instrument * (rw * rh) as f32).ceil().max(1.0) as usize;
         if count < min {
             return Err(EstimateError::NoInstrument { pixels: count, min });

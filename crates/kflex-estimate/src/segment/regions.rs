@@ -1,5 +1,5 @@
-//! Regions of the split and merge: the quadtree leaves, their union by
-//! colour, and the filter that drops small instrument components.
+//! Regions of the split and merge: the quadtree leaves and their union by
+//! colour.
 
 use super::classify::chroma;
 use super::{Scratch, SegmentParams};
@@ -16,7 +16,7 @@ pub(super) struct Region {
 }
 
 impl Region {
-    fn of_mean(mean: [f32; 3], count: f32) -> Region {
+    pub(super) fn of_mean(mean: [f32; 3], count: f32) -> Region {
         Region {
             mean,
             count,
@@ -59,16 +59,30 @@ pub(super) fn split(s: &mut Scratch, depth: usize, rw: usize, rh: usize, p: Segm
         buffer.clear();
         buffer.reserve(cols * rows);
     }
-    s.votes.clear();
-    s.votes.reserve(cols * rows);
-    s.neighbours.clear();
-    s.neighbours.reserve(cols * rows);
     s.roots.clear();
     s.roots.reserve(cols * rows);
     s.leaf_box.clear();
     s.leaf_box.reserve(cols * rows);
-    s.boxes.clear();
-    s.boxes.reserve(cols * rows);
+    // the regions' graph: a leaf pair per cell edge at most, each listed
+    // from both sides; a component per region at most
+    s.leaf_edges.clear();
+    s.leaf_edges.reserve(2 * cols * rows);
+    s.last_right.clear();
+    s.last_right.reserve(cols);
+    s.adjacency.clear();
+    s.adjacency.reserve(4 * cols * rows);
+    s.adjacency_start.clear();
+    s.adjacency_start.reserve(cols * rows + 1);
+    for buffer in [&mut s.flood, &mut s.component] {
+        buffer.clear();
+        buffer.reserve(cols * rows);
+    }
+    s.on_border.clear();
+    s.on_border.reserve(cols * rows);
+    s.seen.clear();
+    s.seen.reserve(cols * rows);
+    s.component_spans.clear();
+    s.component_spans.reserve(cols * rows);
     s.stack.clear();
     s.stack.reserve(3 * depth + 1);
     s.stack.push((depth - 1, 0, 0));
@@ -106,6 +120,9 @@ pub(super) fn split(s: &mut Scratch, depth: usize, rw: usize, rh: usize, p: Segm
     }
 }
 
+/// No record in `leaf_edges` (a pair the merge joined).
+const NONE: u32 = u32::MAX;
+
 /// Merges adjacent regions (4-neighbouring cells with different labels) whose
 /// mean colours are closer than `distance`: union–find on running means.
 /// Leaves each region's merged root in `s.parent`.
@@ -124,15 +141,23 @@ pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, p: &SegmentParams
         labels,
         regions,
         parent,
+        leaf_edges,
+        last_right,
         ..
     } = s;
+    // every pair of leaves across a cell edge, with the edges (for the
+    // graph of the merged regions, `graph::build`)
+    leaf_edges.clear();
+    last_right.clear();
+    last_right.resize(cols, (u32::MAX, u32::MAX, 0));
     parent.clear();
     parent.reserve(cols * rows);
     parent.extend(0..regions.len() as u32);
-    let mut try_merge = |a: u32, b: u32, parent: &mut Vec<u32>| {
+    // whether the two leaves are one region now (they were, or merge here)
+    let mut try_merge = |a: u32, b: u32, parent: &mut Vec<u32>| -> bool {
         let (ra, rb) = (find(parent, a), find(parent, b));
         if ra == rb {
-            return;
+            return true;
         }
         let (pa, pb) = (regions[ra as usize], regions[rb as usize]);
         let gap = (0..3)
@@ -154,22 +179,47 @@ pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, p: &SegmentParams
             regions[ra as usize] =
                 Region::of_mean([0, 1, 2].map(|k| wa * pa.mean[k] + wb * pb.mean[k]), count);
         }
+        close
     };
     for y in 0..rows {
         let row = &labels[y * cols..(y + 1) * cols];
         let below = labels.get((y + 1) * cols..(y + 2) * cols);
         // along a horizontal boundary the same pair repeats cell after cell
         let mut last_down = (u32::MAX, u32::MAX);
+        let mut last_down_at = NONE;
         for x in 0..cols {
             let a = row[x];
             if x + 1 < cols && row[x + 1] != a {
-                try_merge(a, row[x + 1], parent);
+                let b = row[x + 1];
+                // a pair is recorded only while its leaves are two regions
+                // (once one, they stay one); along a vertical boundary the
+                // same pair repeats row after row at the same column, and
+                // adds to its record
+                let joined = try_merge(a, b, parent);
+                let run = &mut last_right[x];
+                if joined {
+                    *run = (a, b, NONE);
+                } else if run.0 == a && run.1 == b && run.2 != NONE {
+                    leaf_edges[run.2 as usize][2] += 1;
+                } else {
+                    *run = (a, b, leaf_edges.len() as u32);
+                    leaf_edges.push([a, b, 1]);
+                }
             }
             if let Some(below) = below {
                 let b = below[x];
-                if b != a && (a, b) != last_down {
-                    try_merge(a, b, parent);
-                    last_down = (a, b);
+                if b != a {
+                    if (a, b) != last_down {
+                        last_down = (a, b);
+                        last_down_at = if try_merge(a, b, parent) {
+                            NONE
+                        } else {
+                            leaf_edges.push([a, b, 1]);
+                            leaf_edges.len() as u32 - 1
+                        };
+                    } else if last_down_at != NONE {
+                        leaf_edges[last_down_at as usize][2] += 1;
+                    }
                 }
             }
         }
@@ -178,73 +228,4 @@ pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, p: &SegmentParams
         let root = find(parent, i);
         parent[i as usize] = root;
     }
-}
-
-/// Clears the 4-connected components of set cells in `s.cells` (`cols × rows`
-/// cells over `rw × rh` pixels) that hold fewer than `min` pixels. Returns the
-/// pixels left set.
-pub(super) fn drop_small_components(
-    s: &mut Scratch,
-    cols: usize,
-    rows: usize,
-    rw: usize,
-    rh: usize,
-    min: usize,
-) -> usize {
-    let Scratch {
-        cells,
-        seen,
-        flood,
-        component,
-        ..
-    } = s;
-    let weight = |i: usize| (rw - 2 * (i % cols)).min(2) * (rh - 2 * (i / cols)).min(2);
-    seen.clear();
-    seen.resize(cells.len(), false);
-    flood.clear();
-    flood.reserve(cells.len());
-    component.clear();
-    component.reserve(cells.len());
-    let mut kept = 0;
-    for start in 0..cells.len() {
-        if cells[start] == 0 || seen[start] {
-            continue;
-        }
-        component.clear();
-        flood.clear();
-        flood.push(start);
-        seen[start] = true;
-        let mut pixels = 0;
-        while let Some(i) = flood.pop() {
-            component.push(i);
-            pixels += weight(i);
-            let (x, y) = (i % cols, i / cols);
-            let mut visit = |j: usize| {
-                if cells[j] != 0 && !seen[j] {
-                    seen[j] = true;
-                    flood.push(j);
-                }
-            };
-            if x > 0 {
-                visit(i - 1);
-            }
-            if x + 1 < cols {
-                visit(i + 1);
-            }
-            if y > 0 {
-                visit(i - cols);
-            }
-            if y + 1 < rows {
-                visit(i + cols);
-            }
-        }
-        if pixels < min {
-            for &i in component.iter() {
-                cells[i] = 0;
-            }
-        } else {
-            kept += pixels;
-        }
-    }
-    kept
 }

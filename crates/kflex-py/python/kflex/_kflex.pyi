@@ -370,13 +370,18 @@ class SegmentParams(_Params):
     metal_chroma: list[float]
     bright_ratio: float
     bright_metal_share: float
+    grow_share: float
+    grow_separation: float
+    grow_brightness: float
     min_relative_value: float
     clip_value: float
     saturated_value: float
     highlight_ratio: float
     highlight_max: float
     highlight_min_value: float
+    fill_holes: bool
     min_component: float
+    min_component_of_largest: float
     min_instrument: float
     out: int
 
