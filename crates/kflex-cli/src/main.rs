@@ -2,6 +2,7 @@
 #![warn(missing_docs)]
 
 mod config;
+mod grid;
 mod paper;
 mod render;
 mod run;

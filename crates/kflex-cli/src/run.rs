@@ -70,9 +70,26 @@ pub struct RunArgs {
     /// the file's sheath_deg, joint_model, seed and noise; the run says so.
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
-    /// Write DIR/results.json.
+    /// Write DIR/results.json (with --scenario, DIR/results.csv too).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// Run a grid of the paper's experiments (Tables V–X) from a scenario
+    /// file (TOML, the fields of kflex-control's ExperimentGrid; those in
+    /// assets/scenarios/), instead of the Table IX run the flags above set up.
+    #[arg(
+        long,
+        value_name = "FILE",
+        conflicts_with_all = ["estimator", "sheath", "periods", "repeats", "seed", "dt", "spread", "no_noise", "joint", "config"]
+    )]
+    scenario: Option<PathBuf>,
+    /// With --scenario: the estimators to run, comma separated (none, kbjae,
+    /// ibjae, lbhjae, lbhjae-adaptive), replacing the file's.
+    #[arg(long, value_delimiter = ',', requires = "scenario")]
+    estimators: Option<Vec<String>>,
+    /// With --scenario: threads running the grid's cases (the results are the
+    /// same for any count).
+    #[arg(long, default_value_t = 2, requires = "scenario")]
+    jobs: usize,
     /// The flags above given on the command line (not defaulted), by id.
     #[arg(skip)]
     given: Vec<&'static str>,
@@ -181,12 +198,20 @@ struct Record {
     peak_loss_definition: &'static str,
 }
 
-const WIDTH_DEFINITION: &str = "hysteresis loop width: largest gap between the falling- and rising-branch mean of the measured angle at equal command, 1-deg bins of theta_d";
-const PEAK_TO_PEAK_DEFINITION: &str =
+pub(crate) const WIDTH_DEFINITION: &str = "hysteresis loop width: largest gap between the falling- and rising-branch mean of the measured angle at equal command, 1-deg bins of theta_d";
+pub(crate) const PEAK_TO_PEAK_DEFINITION: &str =
     "max e - min e, e = measured angle - theta_d (the paper's literal wording)";
-const PEAK_LOSS_DEFINITION: &str = "max theta_d - max measured angle";
+pub(crate) const PEAK_LOSS_DEFINITION: &str = "max theta_d - max measured angle";
 
 pub fn run(args: &RunArgs) -> Result<()> {
+    if let Some(path) = &args.scenario {
+        return crate::grid::run(
+            path,
+            args.estimators.as_deref(),
+            args.jobs,
+            args.out.as_ref(),
+        );
+    }
     if args.sheath.is_empty() {
         bail!("--sheath needs at least one angle");
     }
@@ -367,17 +392,25 @@ fn print_table(args: &RunArgs, notes: &[String], records: &[Record]) {
     }
 }
 
-/// Writes `dir/results.json` atomically: a temporary file in the same folder, then a rename,
-/// so a reader never sees half a file and an old file survives a failed write.
+/// Writes `dir/results.json` atomically (see [`write_atomic`]).
 fn write_results(dir: &Path, records: &[Record]) -> Result<PathBuf> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let path = dir.join("results.json");
-    let tmp = dir.join(".results.json.tmp");
     let json = serde_json::to_string_pretty(records).context("serialising results")?;
+    write_atomic(dir, "results.json", &json)
+}
+
+/// Writes `dir/name` atomically: a temporary file in the same folder, then a
+/// rename, so a reader never sees half a file and an old file survives a
+/// failed write. A newline ends the file.
+pub(crate) fn write_atomic(dir: &Path, name: &str, contents: &str) -> Result<PathBuf> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let path = dir.join(name);
+    let tmp = dir.join(format!(".{name}.tmp"));
     let write = || -> std::io::Result<()> {
         let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(json.as_bytes())?;
-        f.write_all(b"\n")?;
+        f.write_all(contents.as_bytes())?;
+        if !contents.ends_with('\n') {
+            f.write_all(b"\n")?;
+        }
         f.sync_all()?;
         std::fs::rename(&tmp, &path)
     };

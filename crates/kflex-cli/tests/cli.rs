@@ -508,3 +508,193 @@ fn fully_taped_instrument_is_an_error() {
     );
     assert!(dir.join("frame.png").exists());
 }
+
+/// A small scenario: Table IX at 90 deg and Table VIII at 40 % tape, one
+/// period, two repeats.
+const SMALL_SCENARIO: &str = r#"
+estimators = ["none"]
+repeats = 2
+seed = 7
+
+[[cases]]
+table = "IX"
+kind = "compensation"
+sheath_deg = 90.0
+occlusion = "0%"
+
+[[cases]]
+table = "VIII"
+kind = "compensation"
+sheath_deg = 0.0
+occlusion = "40%"
+
+[scenario.motion]
+periods = 1.0
+"#;
+
+fn scenario_file(dir: &Path) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let path = dir.join("small.toml");
+    std::fs::write(&path, SMALL_SCENARIO).unwrap();
+    path
+}
+
+#[test]
+fn a_scenario_runs_its_grid_and_writes_json_and_csv() {
+    let dir = scratch("scenario");
+    let file = scenario_file(&dir);
+    let out_dir = dir.join("out");
+    let out = kflex(&[
+        "run",
+        "--scenario",
+        file.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = stdout_of(&out);
+    assert!(
+        stdout.contains("Table IX") && stdout.contains("Table VIII"),
+        "{stdout}"
+    );
+    let text = std::fs::read_to_string(out_dir.join("results.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let records = json["records"].as_array().unwrap();
+    assert_eq!(records.len(), 2);
+    let (ix, viii) = (&records[0], &records[1]);
+    for (r, table, sheath, occlusion, paper_rmse) in [
+        (ix, "IX", 90.0, "0%", 9.95),
+        (viii, "VIII", 0.0, "40%", 7.84),
+    ] {
+        assert_eq!(r["kind"], "compensation");
+        assert_eq!(r["table"], table);
+        assert_eq!(r["estimator"], "none");
+        assert_eq!(r["sheath_deg"], sheath);
+        assert_eq!(r["occlusion"], occlusion);
+        assert_eq!(r["paper_rmse_deg"], paper_rmse);
+        assert_eq!(r["seeds"], serde_json::json!([7, 8]));
+        assert_eq!(r["periods"], 1.0);
+        for key in [
+            "rmse_deg",
+            "max_hysteresis_deg",
+            "error_peak_to_peak_deg",
+            "peak_loss_deg",
+        ] {
+            let v = r[key].as_f64().unwrap_or(f64::NAN);
+            assert!(v.is_finite() && v > 0.0, "{table} {key}: {v}");
+        }
+    }
+    assert!(
+        json["definitions"]["max_hysteresis"]
+            .as_str()
+            .unwrap()
+            .contains("loop width")
+    );
+    // the CSV holds the same rows
+    let csv = std::fs::read_to_string(out_dir.join("results.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 3, "{csv}");
+    let header: Vec<&str> = lines[0].split(',').collect();
+    let rmse_col = header.iter().position(|h| *h == "rmse_deg").unwrap();
+    for (line, r) in lines[1..].iter().zip(records) {
+        let cells: Vec<&str> = line.split(',').collect();
+        assert_eq!(cells.len(), header.len(), "{line}");
+        assert_eq!(
+            cells[rmse_col].parse::<f64>().unwrap(),
+            r["rmse_deg"].as_f64().unwrap()
+        );
+    }
+    // the scenario's Table IX case is the Table IX run the flags set up
+    let legacy_dir = dir.join("legacy");
+    let out = kflex(&[
+        "run",
+        "--sheath",
+        "90",
+        "--periods",
+        "1",
+        "--repeats",
+        "2",
+        "--seed",
+        "7",
+        "--out",
+        legacy_dir.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let legacy = results(&legacy_dir);
+    for key in ["rmse_deg", "rmse_std_deg", "max_hysteresis_deg"] {
+        assert_eq!(legacy[0][key], ix[key], "{key}");
+    }
+}
+
+#[test]
+fn a_scenario_gives_the_same_results_on_any_number_of_threads() {
+    let dir = scratch("scenario-jobs");
+    let file = scenario_file(&dir);
+    let json = |jobs: &str| {
+        let out_dir = dir.join(format!("out-{jobs}"));
+        let out = kflex(&[
+            "run",
+            "--scenario",
+            file.to_str().unwrap(),
+            "--jobs",
+            jobs,
+            "--out",
+            out_dir.to_str().unwrap(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::fs::read_to_string(out_dir.join("results.json")).unwrap()
+    };
+    assert_eq!(json("1"), json("3"));
+}
+
+#[test]
+fn a_scenario_naming_what_cannot_run_is_refused_before_any_run() {
+    let dir = scratch("scenario-refused");
+    let file = scenario_file(&dir);
+    let out_dir = dir.join("out");
+    let path = file.to_str().unwrap();
+    let out = out_dir.to_str().unwrap();
+    // no trained models ship yet
+    assert_refused(
+        &[
+            "run",
+            "--scenario",
+            path,
+            "--estimators",
+            "none,kbjae",
+            "--out",
+            out,
+        ],
+        "--estimators none",
+    );
+    assert!(!out_dir.join("results.json").exists());
+    assert_refused(
+        &["run", "--scenario", path, "--estimators", "kalman"],
+        "unknown estimator \"kalman\"",
+    );
+    // the flags of the Table IX run do not mix with a scenario
+    assert_refused(&["run", "--scenario", path, "--sheath", "90"], "--sheath");
+    assert_refused(&["run", "--jobs", "2"], "--scenario");
+    assert_refused(
+        &["run", "--scenario", "/nonexistent/kflex.toml"],
+        "/nonexistent/kflex.toml",
+    );
+    // a field the grid does not have, named with its line
+    std::fs::write(dir.join("bad.toml"), "repeats = 2\nrepaets = 3\n").unwrap();
+    assert_refused(
+        &["run", "--scenario", dir.join("bad.toml").to_str().unwrap()],
+        "repaets",
+    );
+}

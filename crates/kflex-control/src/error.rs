@@ -21,6 +21,13 @@ pub enum ControlError {
         /// What happened.
         message: String,
     },
+    /// Something a run needs is not there (e.g. the trained model of an
+    /// estimator a grid names).
+    #[error("{what}")]
+    Unavailable {
+        /// What is missing, and what to do.
+        what: String,
+    },
     /// A log file could not be written.
     #[error("{path}: {message}")]
     Log {

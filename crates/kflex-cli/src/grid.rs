@@ -1,0 +1,313 @@
+//! `kflex-cli run --scenario FILE`: a grid of the paper's experiments
+//! (Tables V–X, kflex-control's `ExperimentGrid`) read from a scenario file,
+//! run on several threads, printed beside the paper's figures and written as
+//! `results.json` and `results.csv`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use kflex_control::{CaseKind, EstimatorKind, ExperimentGrid, MeanStd, Record};
+use serde::Serialize;
+
+use crate::paper::{self, Figure};
+use crate::run::{PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, write_atomic};
+
+/// Every estimator a scenario may name.
+const KINDS: [EstimatorKind; 5] = [
+    EstimatorKind::None,
+    EstimatorKind::Kbjae,
+    EstimatorKind::Ibjae,
+    EstimatorKind::Lbhjae,
+    EstimatorKind::LbhjaeAdaptive,
+];
+
+/// An estimator by its name in scenario files.
+pub fn estimator(name: &str) -> Result<EstimatorKind> {
+    KINDS
+        .into_iter()
+        .find(|k| k.name() == name)
+        .with_context(|| {
+            let names: Vec<&str> = KINDS.iter().map(|k| k.name()).collect();
+            format!("unknown estimator {name:?}: one of {}", names.join(", "))
+        })
+}
+
+/// Reads a scenario file (TOML: the fields of `ExperimentGrid`; what it
+/// leaves out keeps the paper's grid).
+pub fn load(path: &Path) -> Result<ExperimentGrid> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    toml::from_str(&text).with_context(|| format!("parsing the scenario {}", path.display()))
+}
+
+/// One row of `results.json` and `results.csv`. Field names are stable:
+/// later versions extend, never rename.
+#[derive(Debug, Serialize)]
+pub struct Row {
+    kind: &'static str,
+    table: String,
+    estimator: &'static str,
+    sheath_deg: f64,
+    occlusion: &'static str,
+    /// Estimation: the estimate against the true angle; compensation: the
+    /// measured angle against θ_d.
+    rmse_deg: f64,
+    rmse_std_deg: f64,
+    max_hysteresis_deg: Option<f64>,
+    max_hysteresis_std_deg: Option<f64>,
+    error_peak_to_peak_deg: Option<f64>,
+    error_peak_to_peak_std_deg: Option<f64>,
+    peak_loss_deg: Option<f64>,
+    peak_loss_std_deg: Option<f64>,
+    paper_rmse_deg: Option<f64>,
+    paper_rmse_std_deg: Option<f64>,
+    paper_max_hysteresis_deg: Option<f64>,
+    paper_max_hysteresis_std_deg: Option<f64>,
+    repeats: usize,
+    seeds: Vec<u64>,
+    backgrounds: Vec<String>,
+    periods: f64,
+    dt_s: f64,
+}
+
+impl Row {
+    fn of(record: &Record, grid: &ExperimentGrid) -> Result<Row> {
+        let case = &record.case;
+        let (paper_rmse, paper_width) = paper::figure(
+            &case.table,
+            record.estimator.name(),
+            case.sheath_deg,
+            case.occlusion.name(),
+        )?;
+        let h = |i: usize, f: fn(&MeanStd) -> f64| record.hysteresis.as_ref().map(|h| f(&h[i]));
+        Ok(Row {
+            kind: match case.kind {
+                CaseKind::Estimation => "estimation",
+                CaseKind::Compensation => "compensation",
+            },
+            table: case.table.clone(),
+            estimator: record.estimator.name(),
+            sheath_deg: case.sheath_deg,
+            occlusion: case.occlusion.name(),
+            rmse_deg: record.rmse_deg.mean,
+            rmse_std_deg: record.rmse_deg.std,
+            max_hysteresis_deg: h(0, |m| m.mean),
+            max_hysteresis_std_deg: h(0, |m| m.std),
+            error_peak_to_peak_deg: h(1, |m| m.mean),
+            error_peak_to_peak_std_deg: h(1, |m| m.std),
+            peak_loss_deg: h(2, |m| m.mean),
+            peak_loss_std_deg: h(2, |m| m.std),
+            paper_rmse_deg: paper_rmse.map(|f| f.mean),
+            paper_rmse_std_deg: paper_rmse.map(|f| f.std),
+            // the paper reports the maximum hysteresis of compensation runs only
+            paper_max_hysteresis_deg: paper_width
+                .filter(|_| case.kind == CaseKind::Compensation)
+                .map(|f: Figure| f.mean),
+            paper_max_hysteresis_std_deg: paper_width
+                .filter(|_| case.kind == CaseKind::Compensation)
+                .map(|f: Figure| f.std),
+            repeats: record.repeats.len(),
+            seeds: record.repeats.iter().map(|r| r.0).collect(),
+            backgrounds: record
+                .repeats
+                .iter()
+                .map(|r| format!("{:?}", r.1).to_lowercase())
+                .collect(),
+            periods: grid.scenario.motion.periods,
+            dt_s: grid.scenario.motion.dt_s,
+        })
+    }
+}
+
+/// What the grid needs that kflex cannot give yet.
+fn make(kind: EstimatorKind) -> kflex_control::Result<Box<dyn kflex_control::AngleEstimator>> {
+    Err(kflex_control::ControlError::Unavailable {
+        what: format!(
+            "the estimator {} needs trained models, which kflex does not ship yet (see the \
+             README's \"Status\"); run the scenario with --estimators none",
+            kind.name()
+        ),
+    })
+}
+
+/// Runs the scenario: `estimators` replace the file's when given.
+pub fn run(
+    path: &Path,
+    estimators: Option<&[String]>,
+    jobs: usize,
+    out: Option<&PathBuf>,
+) -> Result<()> {
+    let mut grid = load(path)?;
+    if let Some(names) = estimators {
+        grid.estimators = names.iter().map(|n| estimator(n)).collect::<Result<_>>()?;
+    }
+    if let Some(kind) = grid.estimators.iter().find(|&&k| k != EstimatorKind::None) {
+        // fail before any run, not after the first cases
+        if let Err(e) = make(*kind) {
+            bail!("{e}");
+        }
+    }
+    let total_cases = grid.cases.len();
+    println!(
+        "kflex run — scenario {} ({total_cases} case{}, estimators {}, {} repeat{}, seeds {}.., {} periods of the input)",
+        path.display(),
+        if total_cases == 1 { "" } else { "s" },
+        grid.estimators
+            .iter()
+            .map(|e| e.name())
+            .collect::<Vec<_>>()
+            .join(", "),
+        grid.repeats,
+        if grid.repeats == 1 { "" } else { "s" },
+        grid.seed,
+        grid.scenario.motion.periods,
+    );
+    let progress = |done: usize, total: usize| {
+        eprint!("\r  {done}/{total} runs of the grid done");
+        if done == total {
+            eprintln!();
+        }
+    };
+    let records = grid
+        .run(jobs.max(1), &make, &progress)
+        .with_context(|| format!("running the scenario {}", path.display()))?;
+    let rows = records
+        .iter()
+        .map(|r| Row::of(r, &grid))
+        .collect::<Result<Vec<_>>>()?;
+    print_tables(&rows);
+    if let Some(dir) = out {
+        let json = serde_json::to_string_pretty(&Results {
+            definitions: Definitions {
+                max_hysteresis: WIDTH_DEFINITION,
+                error_peak_to_peak: PEAK_TO_PEAK_DEFINITION,
+                peak_loss: PEAK_LOSS_DEFINITION,
+            },
+            records: &rows,
+        })
+        .context("serialising results")?;
+        let path = write_atomic(dir, "results.json", &json)?;
+        println!("\nwrote {}", path.display());
+        let path = write_atomic(dir, "results.csv", &csv(&rows))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+#[derive(Serialize)]
+struct Definitions {
+    max_hysteresis: &'static str,
+    error_peak_to_peak: &'static str,
+    peak_loss: &'static str,
+}
+
+#[derive(Serialize)]
+struct Results<'a> {
+    definitions: Definitions,
+    records: &'a [Row],
+}
+
+/// The rows as CSV: one header line, the fields of `Row` in order, seeds and
+/// backgrounds joined by `;`, an empty cell for a figure a row has none of.
+fn csv(rows: &[Row]) -> String {
+    let opt = |v: Option<f64>| v.map_or(String::new(), |v| v.to_string());
+    let mut s = String::from(
+        "kind,table,estimator,sheath_deg,occlusion,rmse_deg,rmse_std_deg,max_hysteresis_deg,\
+         max_hysteresis_std_deg,error_peak_to_peak_deg,error_peak_to_peak_std_deg,peak_loss_deg,\
+         peak_loss_std_deg,paper_rmse_deg,paper_rmse_std_deg,paper_max_hysteresis_deg,\
+         paper_max_hysteresis_std_deg,repeats,seeds,backgrounds,periods,dt_s\n",
+    );
+    for r in rows {
+        let seeds: Vec<String> = r.seeds.iter().map(u64::to_string).collect();
+        let cells = [
+            r.kind.to_owned(),
+            r.table.clone(),
+            r.estimator.to_owned(),
+            r.sheath_deg.to_string(),
+            r.occlusion.to_owned(),
+            r.rmse_deg.to_string(),
+            r.rmse_std_deg.to_string(),
+            opt(r.max_hysteresis_deg),
+            opt(r.max_hysteresis_std_deg),
+            opt(r.error_peak_to_peak_deg),
+            opt(r.error_peak_to_peak_std_deg),
+            opt(r.peak_loss_deg),
+            opt(r.peak_loss_std_deg),
+            opt(r.paper_rmse_deg),
+            opt(r.paper_rmse_std_deg),
+            opt(r.paper_max_hysteresis_deg),
+            opt(r.paper_max_hysteresis_std_deg),
+            r.repeats.to_string(),
+            seeds.join(";"),
+            r.backgrounds.join(";"),
+            r.periods.to_string(),
+            r.dt_s.to_string(),
+        ];
+        // the occlusion names ("40% distal") hold no comma or quote
+        s.push_str(&cells.join(","));
+        s.push('\n');
+    }
+    s
+}
+
+fn pm(mean: f64, std: f64) -> String {
+    format!("{mean:6.2} ± {std:4.2}")
+}
+
+fn paper_pm(mean: Option<f64>, std: Option<f64>) -> String {
+    match (mean, std) {
+        (Some(m), Some(s)) => pm(m, s),
+        _ => format!("{:>13}", "—"),
+    }
+}
+
+/// One table per paper table, in the grid's order.
+fn print_tables(rows: &[Row]) {
+    let mut tables: Vec<&str> = Vec::new();
+    for r in rows {
+        if !tables.contains(&r.table.as_str()) {
+            tables.push(&r.table);
+        }
+    }
+    for table in tables {
+        let these: Vec<&Row> = rows.iter().filter(|r| r.table == table).collect();
+        let compensation = these.iter().any(|r| r.kind == "compensation");
+        println!(
+            "\nTable {table} — {}",
+            if compensation {
+                "closed loop: RMSE of the measured angle against θ_d, and the maximum hysteresis (loop width)"
+            } else {
+                "estimation: RMSE of each estimate against the true angle"
+            }
+        );
+        print!(
+            "{:>7} {:>11} {:>16} | {:>15} {:>15}",
+            "sheath", "occlusion", "estimator", "RMSE kflex", "RMSE paper"
+        );
+        if compensation {
+            print!(" | {:>15} {:>15}", "width kflex", "width paper");
+        }
+        println!();
+        for r in these {
+            print!(
+                "{:>7} {:>11} {:>16} | {:>15} {:>15}",
+                r.sheath_deg,
+                r.occlusion,
+                r.estimator,
+                pm(r.rmse_deg, r.rmse_std_deg),
+                paper_pm(r.paper_rmse_deg, r.paper_rmse_std_deg),
+            );
+            if compensation {
+                let kflex = match (r.max_hysteresis_deg, r.max_hysteresis_std_deg) {
+                    (Some(m), Some(s)) => pm(m, s),
+                    _ => format!("{:>13}", "—"),
+                };
+                print!(
+                    " | {kflex:>15} {:>15}",
+                    paper_pm(r.paper_max_hysteresis_deg, r.paper_max_hysteresis_std_deg)
+                );
+            }
+            println!();
+        }
+    }
+}
