@@ -36,7 +36,8 @@ pub mod keys {
     pub const BAND: &str = "band";
     /// The grid's steps: `theta_step_deg,translation_step_mm`.
     pub const GRID: &str = "grid";
-    /// The camera's intrinsics and lens, as debug text (for the reader).
+    /// The camera the silhouettes were rendered through (intrinsics, lens
+    /// and mounting), as text (`load_databases` compares it).
     pub const CAMERA: &str = "camera";
     /// Median feature distance between silhouettes one degree of bend apart.
     pub const DISTANCE_PER_DEG: &str = "distance_per_deg";
@@ -324,12 +325,15 @@ pub fn build_band_database(
         keys::GRID,
         format!("{theta_step_deg},{translation_step_mm}"),
     );
-    index.set_metadata(
-        keys::CAMERA,
-        format!("{:?} {:?}", camera.intrinsics, camera.lens),
-    );
+    index.set_metadata(keys::CAMERA, camera_key(camera));
     index.set_metadata(keys::DISTANCE_PER_DEG, format!("{median}"));
     BandDatabase::from_index(index)
+}
+
+/// The camera as a database's metadata names it: every field, exactly
+/// (Rust's debug text of an `f64` reads back to the same number).
+pub(crate) fn camera_key(camera: &Camera) -> String {
+    format!("{camera:?}")
 }
 
 /// IBJAE: segmentation, SCNN embedding and retrieval in one.

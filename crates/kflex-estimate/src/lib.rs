@@ -84,6 +84,8 @@
 //! `kflex-model` already uses).
 #![warn(missing_docs)]
 
+#[cfg(all(feature = "onnx", feature = "index"))]
+mod database;
 mod error;
 mod fusion;
 #[cfg(all(feature = "onnx", feature = "index"))]
@@ -100,6 +102,8 @@ pub mod onnx;
 mod scnn;
 mod segment;
 
+#[cfg(all(feature = "onnx", feature = "index"))]
+pub use database::{DATABASE_EXT, build_databases, database_file, load_databases, save_databases};
 pub use error::{EstimateError, Result};
 pub use fusion::{
     AdaptiveKalman, AdaptiveParams, Estimate, FilterRate, Fusion, KalmanParams, Measurements,

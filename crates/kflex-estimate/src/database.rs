@@ -1,0 +1,165 @@
+//! IBJAE's feature databases on disk: one file per working band
+//! (`band-000.kfdb`, `band-001.kfdb`, … in the bands' order, each a
+//! [`FeatureIndex`] file with the band, grid, camera and SCNN in its
+//! metadata), built over a camera's working regions by
+//! [`build_databases`], written by [`save_databases`] (a whole directory or
+//! nothing) and read by [`load_databases`], which refuses a database built
+//! for another camera.
+
+use std::path::{Path, PathBuf};
+
+use kflex_model::{Camera, Instrument, WorkingRegions};
+
+use crate::error::{EstimateError, Result};
+use crate::ibjae::{BandDatabase, build_band_database, camera_key, keys};
+use crate::index::FeatureIndex;
+use crate::scnn::Scnn;
+
+/// The extension of a band's database file.
+pub const DATABASE_EXT: &str = "kfdb";
+
+/// The file of band `i` in a database directory.
+#[must_use]
+pub fn database_file(dir: &Path, i: usize) -> PathBuf {
+    dir.join(format!("band-{i:03}.{DATABASE_EXT}"))
+}
+
+/// The databases of every band of `regions`: the nominal `instrument`'s
+/// silhouettes through `camera` on a grid of `theta_step_deg` ×
+/// `translation_step_mm`, embedded by `scnn` ([`build_band_database`] per
+/// band, in the bands' order).
+///
+/// # Errors
+/// As [`build_band_database`].
+pub fn build_databases(
+    scnn: &mut Scnn,
+    camera: &Camera,
+    instrument: &Instrument,
+    regions: &WorkingRegions,
+    theta_step_deg: f64,
+    translation_step_mm: f64,
+) -> Result<Vec<BandDatabase>> {
+    regions
+        .bands()
+        .iter()
+        .map(|band| {
+            build_band_database(
+                scnn,
+                camera,
+                instrument,
+                band,
+                theta_step_deg,
+                translation_step_mm,
+            )
+        })
+        .collect()
+}
+
+/// Writes `bands` into the directory `dir` as `band-000.kfdb`, …: first into
+/// a new directory beside it, which then takes `dir`'s place, so `dir` holds
+/// either the old databases or all the new ones, never a mixture; files of
+/// `dir` that are not databases are kept.
+///
+/// # Errors
+/// [`EstimateError::Io`] naming the file or directory that could not be
+/// written or moved (the new directory is removed again);
+/// [`EstimateError::EmptyIndex`] for no bands.
+pub fn save_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
+    if bands.is_empty() {
+        return Err(EstimateError::EmptyIndex);
+    }
+    let name = dir
+        .file_name()
+        .map_or_else(|| "databases".into(), |n| n.to_string_lossy().into_owned());
+    let parent = dir.parent().filter(|p| !p.as_os_str().is_empty());
+    let sibling = |tag: &str| {
+        let n = format!(".{name}.{tag}-{}", std::process::id());
+        parent.map_or_else(|| PathBuf::from(&n), |p| p.join(&n))
+    };
+    let (fresh, old) = (sibling("new"), sibling("old"));
+    fn io(path: &Path) -> impl Fn(std::io::Error) -> EstimateError + '_ {
+        move |e| EstimateError::io(path, &e)
+    }
+    let _ = std::fs::remove_dir_all(&fresh);
+    if let Some(p) = parent {
+        std::fs::create_dir_all(p).map_err(io(p))?;
+    }
+    std::fs::create_dir(&fresh).map_err(io(&fresh))?;
+    let written = (|| -> Result<()> {
+        for (i, b) in bands.iter().enumerate() {
+            b.index.save(database_file(&fresh, i))?;
+        }
+        // what else the old directory holds (a README, a card) stays
+        if dir.is_dir() {
+            for entry in std::fs::read_dir(dir).map_err(io(dir))? {
+                let entry = entry.map_err(io(dir))?;
+                let path = entry.path();
+                if path.extension().and_then(|e| e.to_str()) != Some(DATABASE_EXT) {
+                    let to = fresh.join(entry.file_name());
+                    std::fs::copy(&path, &to).map_err(io(&path))?;
+                }
+            }
+        }
+        Ok(())
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_dir_all(&fresh);
+        return Err(e);
+    }
+    // the swap: the old directory aside, the new one in its place
+    let had_old = dir.exists();
+    if had_old {
+        std::fs::rename(dir, &old).map_err(|e| {
+            let _ = std::fs::remove_dir_all(&fresh);
+            EstimateError::io(dir, &e)
+        })?;
+    }
+    if let Err(e) = std::fs::rename(&fresh, dir) {
+        if had_old {
+            let _ = std::fs::rename(&old, dir);
+        }
+        let _ = std::fs::remove_dir_all(&fresh);
+        return Err(EstimateError::io(dir, &e));
+    }
+    if had_old {
+        let _ = std::fs::remove_dir_all(&old);
+    }
+    Ok(())
+}
+
+/// Reads the databases of `dir` (`band-000.kfdb`, … up to the first missing
+/// number), each checked against `camera`: a database rendered through
+/// another camera (intrinsics, lens or mounting) would answer for silhouettes
+/// that camera sees, not this one's.
+///
+/// # Errors
+/// [`EstimateError::Io`] when `dir` holds no `band-000.kfdb` (kind
+/// `NotFound`) or a file cannot be read; as [`FeatureIndex::load`] and
+/// [`BandDatabase::from_index`] for a damaged file;
+/// [`EstimateError::ModelMismatch`] naming both cameras for a database
+/// built for another camera.
+pub fn load_databases(dir: &Path, camera: &Camera) -> Result<Vec<BandDatabase>> {
+    let expected = camera_key(camera);
+    let mut bands = Vec::new();
+    loop {
+        let path = database_file(dir, bands.len());
+        if !bands.is_empty() && !path.exists() {
+            break;
+        }
+        let index = FeatureIndex::load(&path)?;
+        let found = index
+            .metadata()
+            .get(keys::CAMERA)
+            .map_or("(none)", String::as_str);
+        if found != expected {
+            return Err(EstimateError::ModelMismatch {
+                path: path.display().to_string(),
+                which: "camera",
+                expected,
+                found: found.to_string(),
+            });
+        }
+        bands.push(BandDatabase::from_index(index)?);
+    }
+    Ok(bands)
+}
