@@ -7,8 +7,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use kflex_control::{CaseKind, EstimatorKind, ExperimentGrid, MeanStd, Record};
+use kflex_model::Camera;
 use serde::Serialize;
 
+use crate::models::Models;
 use crate::paper::{self, Figure};
 use crate::run::{PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, write_atomic};
 
@@ -119,21 +121,12 @@ impl Row {
     }
 }
 
-/// What the grid needs that kflex cannot give yet.
-fn make(kind: EstimatorKind) -> kflex_control::Result<Box<dyn kflex_control::AngleEstimator>> {
-    Err(kflex_control::ControlError::Unavailable {
-        what: format!(
-            "the estimator {} needs trained models, which kflex does not ship yet (see the \
-             README's \"Status\"); run the scenario with --estimators none",
-            kind.name()
-        ),
-    })
-}
-
-/// Runs the scenario: `estimators` replace the file's when given.
+/// Runs the scenario: `estimators` replace the file's when given; the
+/// estimators load their models from `models`.
 pub fn run(
     path: &Path,
     estimators: Option<&[String]>,
+    models: &Models,
     jobs: usize,
     out: Option<&PathBuf>,
 ) -> Result<()> {
@@ -141,15 +134,23 @@ pub fn run(
     if let Some(names) = estimators {
         grid.estimators = names.iter().map(|n| estimator(n)).collect::<Result<_>>()?;
     }
-    if let Some(kind) = grid.estimators.iter().find(|&&k| k != EstimatorKind::None) {
-        // fail before any run, not after the first cases
-        if let Err(e) = make(*kind) {
+    // the runs render through the nominal camera (the databases' own)
+    let camera = Camera::default();
+    let make = |kind| models.make(kind, &camera);
+    // every estimator made once before any run: a missing or damaged model
+    // fails now, not after the first cases
+    for &kind in grid
+        .estimators
+        .iter()
+        .filter(|&&k| k != EstimatorKind::None)
+    {
+        if let Err(e) = make(kind) {
             bail!("{e}");
         }
     }
     let total_cases = grid.cases.len();
     println!(
-        "kflex run — scenario {} ({total_cases} case{}, estimators {}, {} repeat{}, seeds {}.., {} periods of the input)",
+        "kflex run — scenario {} ({total_cases} case{}, estimators {}, {} repeat{}, seeds {}.., {} period{} of the input)",
         path.display(),
         if total_cases == 1 { "" } else { "s" },
         grid.estimators
@@ -161,6 +162,11 @@ pub fn run(
         if grid.repeats == 1 { "" } else { "s" },
         grid.seed,
         grid.scenario.motion.periods,
+        if grid.scenario.motion.periods == 1.0 {
+            ""
+        } else {
+            "s"
+        },
     );
     let progress = |done: usize, total: usize| {
         eprint!("\r  {done}/{total} runs of the grid done");

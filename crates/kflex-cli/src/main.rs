@@ -1,8 +1,10 @@
 //! `kflex-cli`: reproduce and extend the seed paper's experiments on the kflex testbed.
 #![warn(missing_docs)]
 
+mod build_db;
 mod config;
 mod grid;
+mod models;
 mod paper;
 mod render;
 mod run;
@@ -26,6 +28,9 @@ enum Command {
     Run(run::RunArgs),
     /// Render one endoscope frame, its 48×48 silhouette, segmentation and masks as PNG.
     Render(render::RenderArgs),
+    /// Build IBJAE's feature databases over the default camera's working
+    /// regions with a trained SCNN.
+    BuildDb(build_db::BuildDbArgs),
 }
 
 fn main() -> ExitCode {
@@ -39,6 +44,7 @@ fn main() -> ExitCode {
             run::run(&args)
         }
         Command::Render(args) => render::render(&args),
+        Command::BuildDb(args) => build_db::build_db(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

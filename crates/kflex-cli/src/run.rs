@@ -90,6 +90,10 @@ pub struct RunArgs {
     /// same for any count).
     #[arg(long, default_value_t = 2, requires = "scenario")]
     jobs: usize,
+    /// With --scenario: the trained models' directory (kbjae.onnx, scnn.onnx,
+    /// db/ from `kflex-cli build-db`), where the estimators load them from.
+    #[arg(long, value_name = "DIR", default_value = crate::models::DEFAULT_DIR, requires = "scenario")]
+    models: PathBuf,
     /// The flags above given on the command line (not defaulted), by id.
     #[arg(skip)]
     given: Vec<&'static str>,
@@ -208,6 +212,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         return crate::grid::run(
             path,
             args.estimators.as_deref(),
+            &crate::models::Models::new(&args.models),
             args.jobs,
             args.out.as_ref(),
         );

@@ -666,19 +666,29 @@ fn a_scenario_naming_what_cannot_run_is_refused_before_any_run() {
     let out_dir = dir.join("out");
     let path = file.to_str().unwrap();
     let out = out_dir.to_str().unwrap();
-    // no trained models ship yet
-    assert_refused(
-        &[
-            "run",
-            "--scenario",
-            path,
-            "--estimators",
-            "none,kbjae",
-            "--out",
-            out,
-        ],
-        "--estimators none",
-    );
+    // no trained models in the directory given
+    let no_models = dir.join("no-models");
+    let no_models = no_models.to_str().unwrap();
+    for (estimators, needs) in [
+        ("none,kbjae", "kbjae.onnx"),
+        ("ibjae", "scnn.onnx"),
+        ("lbhjae-adaptive", "band-000.kfdb"),
+    ] {
+        assert_refused(
+            &[
+                "run",
+                "--scenario",
+                path,
+                "--estimators",
+                estimators,
+                "--models",
+                no_models,
+                "--out",
+                out,
+            ],
+            needs,
+        );
+    }
     assert!(!out_dir.join("results.json").exists());
     assert_refused(
         &["run", "--scenario", path, "--estimators", "kalman"],
@@ -697,4 +707,136 @@ fn a_scenario_naming_what_cannot_run_is_refused_before_any_run() {
         &["run", "--scenario", dir.join("bad.toml").to_str().unwrap()],
         "repaets",
     );
+}
+
+/// The small test models of `tools/make_test_models.py` as a models
+/// directory, its databases built by `kflex-cli build-db` on a coarse grid.
+fn test_models(dir: &Path) -> PathBuf {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../kflex-estimate/tests/data");
+    let models = dir.join("models");
+    std::fs::create_dir_all(&models).unwrap();
+    std::fs::copy(data.join("kbjae_test.onnx"), models.join("kbjae.onnx")).unwrap();
+    std::fs::copy(data.join("scnn_test.onnx"), models.join("scnn.onnx")).unwrap();
+    let out = kflex(&[
+        "build-db",
+        "--scnn",
+        models.join("scnn.onnx").to_str().unwrap(),
+        "--out",
+        models.join("db").to_str().unwrap(),
+        "--theta-step",
+        "5",
+        "--d-step",
+        "8",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout_of(&out).contains("wrote 28 databases"),
+        "{}",
+        stdout_of(&out)
+    );
+    models
+}
+
+#[test]
+fn every_estimator_runs_in_a_scenario_on_models_from_a_directory() {
+    let dir = scratch("models");
+    let models = test_models(&dir);
+    let file = dir.join("all.toml");
+    std::fs::write(
+        &file,
+        r#"
+estimators = ["none", "kbjae", "ibjae", "lbhjae", "lbhjae-adaptive"]
+repeats = 1
+[[cases]]
+table = "V"
+kind = "estimation"
+sheath_deg = 0.0
+occlusion = "20%"
+[[cases]]
+table = "IX"
+kind = "compensation"
+sheath_deg = 90.0
+occlusion = "0%"
+[scenario.motion]
+periods = 1.0
+"#,
+    )
+    .unwrap();
+    let out_dir = dir.join("out");
+    let out = kflex(&[
+        "run",
+        "--scenario",
+        file.to_str().unwrap(),
+        "--models",
+        models.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(out_dir.join("results.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let records = json["records"].as_array().unwrap();
+    let rows: Vec<String> = records
+        .iter()
+        .map(|r| {
+            let rmse = r["rmse_deg"].as_f64().unwrap_or(f64::NAN);
+            assert!(rmse.is_finite() && rmse > 0.0, "{r}");
+            format!("{} {} {}", r["kind"], r["table"], r["estimator"]).replace('"', "")
+        })
+        .collect();
+    assert_eq!(
+        rows,
+        [
+            "estimation V kbjae",
+            "estimation V ibjae",
+            "estimation V lbhjae",
+            "estimation V lbhjae-adaptive",
+            "compensation IX none",
+            "compensation IX kbjae",
+            "compensation IX ibjae",
+            "compensation IX lbhjae",
+            "compensation IX lbhjae-adaptive",
+        ]
+    );
+    // a closed loop on an estimate is not the uncompensated plant
+    assert_ne!(records[4]["rmse_deg"], records[5]["rmse_deg"]);
+}
+
+#[test]
+fn build_db_refuses_a_missing_model_and_bad_steps() {
+    let dir = scratch("build-db");
+    let out = dir.join("db");
+    let out = out.to_str().unwrap();
+    assert_refused(
+        &["build-db", "--scnn", "/nonexistent/scnn.onnx", "--out", out],
+        "/nonexistent/scnn.onnx",
+    );
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../kflex-estimate/tests/data");
+    let scnn = data.join("scnn_test.onnx");
+    let scnn = scnn.to_str().unwrap();
+    assert_refused(
+        &[
+            "build-db",
+            "--scnn",
+            scnn,
+            "--out",
+            out,
+            "--theta-step",
+            "0",
+        ],
+        "theta_step_deg",
+    );
+    assert_refused(
+        &["build-db", "--scnn", scnn, "--out", out, "--d-step", "-1"],
+        "translation_step_mm",
+    );
+    assert!(!Path::new(out).exists());
 }

@@ -1,0 +1,122 @@
+//! The trained models a grid's estimators load, from one directory:
+//! `kbjae.onnx` (KBJAE's MLP), `scnn.onnx` (IBJAE's Siamese CNN) and `db/`
+//! (IBJAE's feature databases, `kflex-cli build-db`). `assets/models/` is
+//! where kflex's own trained models will ship.
+
+use std::path::{Path, PathBuf};
+
+use kflex_control::{AngleEstimator, ControlError, EstimatorKind, IbjaeAlone};
+use kflex_estimate::{
+    AdaptiveKalman, AdaptiveParams, Ibjae, KalmanParams, Kbjae, Lbhjae, PaperKalman, Scnn,
+    SegmentParams, load_databases,
+};
+use kflex_model::Camera;
+
+/// Where kflex's trained models ship, relative to the project's root.
+pub const DEFAULT_DIR: &str = "assets/models";
+
+/// A directory of trained models.
+#[derive(Debug, Clone)]
+pub struct Models {
+    dir: PathBuf,
+}
+
+impl Models {
+    /// The models in `dir`.
+    pub fn new(dir: &Path) -> Self {
+        Self {
+            dir: dir.to_path_buf(),
+        }
+    }
+
+    /// KBJAE's model file.
+    pub fn kbjae(&self) -> PathBuf {
+        self.dir.join("kbjae.onnx")
+    }
+
+    /// IBJAE's SCNN file.
+    pub fn scnn(&self) -> PathBuf {
+        self.dir.join("scnn.onnx")
+    }
+
+    /// IBJAE's database directory.
+    pub fn databases(&self) -> PathBuf {
+        self.dir.join("db")
+    }
+
+    /// The files `kind` needs that are not there.
+    pub fn missing(&self, kind: EstimatorKind) -> Vec<PathBuf> {
+        let (kbjae, ibjae) = match kind {
+            EstimatorKind::None => (false, false),
+            EstimatorKind::Kbjae => (true, false),
+            EstimatorKind::Ibjae => (false, true),
+            EstimatorKind::Lbhjae | EstimatorKind::LbhjaeAdaptive => (true, true),
+        };
+        let mut files = Vec::new();
+        if kbjae {
+            files.push(self.kbjae());
+        }
+        if ibjae {
+            files.push(self.scnn());
+            files.push(kflex_estimate::database_file(&self.databases(), 0));
+        }
+        files.retain(|f| !f.exists());
+        files
+    }
+
+    fn ibjae(&self, camera: &Camera) -> kflex_control::Result<Ibjae> {
+        let scnn = Scnn::load(&self.scnn(), 1)?;
+        let bands = load_databases(&self.databases(), camera)?;
+        Ok(Ibjae::new(scnn, SegmentParams::default(), bands)?)
+    }
+
+    /// A fresh estimator of `kind` on these models, for a run through the
+    /// nominal `camera` (the one the databases were rendered through).
+    ///
+    /// # Errors
+    /// [`ControlError::Unavailable`] naming the files that are missing;
+    /// a model's or database's own error (damaged, built with another
+    /// model or camera, no ONNX Runtime).
+    pub fn make(
+        &self,
+        kind: EstimatorKind,
+        camera: &Camera,
+    ) -> kflex_control::Result<Box<dyn AngleEstimator>> {
+        let missing = self.missing(kind);
+        if !missing.is_empty() {
+            let files: Vec<String> = missing.iter().map(|f| f.display().to_string()).collect();
+            return Err(ControlError::Unavailable {
+                what: format!(
+                    "the estimator {} needs {}: kflex does not ship trained models yet \
+                     (training/README.md trains them, `kflex-cli build-db` builds the \
+                     databases); give the directory that holds them with --models, or run \
+                     with --estimators none",
+                    kind.name(),
+                    files.join(" and ")
+                ),
+            });
+        }
+        let fusion =
+            |adaptive: bool| -> kflex_control::Result<Box<dyn kflex_estimate::Fusion + Send>> {
+                Ok(if adaptive {
+                    Box::new(AdaptiveKalman::new(AdaptiveParams::default())?)
+                } else {
+                    Box::new(PaperKalman::new(KalmanParams::default())?)
+                })
+            };
+        Ok(match kind {
+            EstimatorKind::None => {
+                return Err(ControlError::Unavailable {
+                    what: "the uncompensated plant has no estimator to make".into(),
+                });
+            }
+            EstimatorKind::Kbjae => Box::new(Kbjae::load(&self.kbjae())?),
+            EstimatorKind::Ibjae => Box::new(IbjaeAlone::new(self.ibjae(camera)?)),
+            EstimatorKind::Lbhjae | EstimatorKind::LbhjaeAdaptive => Box::new(Lbhjae::new(
+                Kbjae::load(&self.kbjae())?,
+                self.ibjae(camera)?,
+                fusion(kind == EstimatorKind::LbhjaeAdaptive)?,
+            )),
+        })
+    }
+}
