@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use kflex_control::{CaseKind, EstimatorKind, ExperimentGrid, MeanStd, Record};
+use kflex_control::{CaseKind, EstimatorKind, ExperimentGrid, GridRun, MeanStd, Record};
 use kflex_model::Camera;
 use serde::Serialize;
 
@@ -121,14 +121,50 @@ impl Row {
     }
 }
 
+/// The MCAP log of one estimator's view of a run, under `dir`:
+/// `V_0deg_40pct-distal_kbjae_seed2020.mcap`.
+fn log_path(dir: &Path, run: &GridRun<'_>, estimator: EstimatorKind) -> PathBuf {
+    let occlusion = run
+        .case
+        .occlusion
+        .name()
+        .replace('%', "pct")
+        .replace(' ', "-");
+    dir.join(format!(
+        "{}_{}deg_{occlusion}_{}_seed{}.mcap",
+        run.case.table,
+        run.case.sheath_deg,
+        estimator.name(),
+        run.seed
+    ))
+}
+
+/// Writes a run's MCAP logs, one per estimator on it (an estimation run's
+/// estimators share it; each log carries its own estimate).
+fn write_logs(dir: &Path, run: &GridRun<'_>) -> kflex_control::Result<()> {
+    for (i, &estimator) in run.estimators.iter().enumerate() {
+        let path = log_path(dir, run, estimator);
+        if i == 0 {
+            run.trace.write_mcap(&path, run.scenario, run.seed)?;
+        } else {
+            let mut trace = run.trace.clone();
+            trace.theta_hat_deg = run.estimates[i].to_vec();
+            trace.write_mcap(&path, run.scenario, run.seed)?;
+        }
+    }
+    Ok(())
+}
+
 /// Runs the scenario: `estimators` replace the file's when given; the
-/// estimators load their models from `models`.
+/// estimators load their models from `models`; with `mcap`, every run's
+/// log goes to `out/runs/`.
 pub fn run(
     path: &Path,
     estimators: Option<&[String]>,
     models: &Models,
     jobs: usize,
     out: Option<&PathBuf>,
+    mcap: bool,
 ) -> Result<()> {
     let mut grid = load(path)?;
     if let Some(names) = estimators {
@@ -174,9 +210,25 @@ pub fn run(
             eprintln!();
         }
     };
+    let logs = match (mcap, out) {
+        (true, Some(dir)) => {
+            let logs = dir.join("runs");
+            std::fs::create_dir_all(&logs)
+                .with_context(|| format!("creating {}", logs.display()))?;
+            Some(logs)
+        }
+        _ => None,
+    };
+    let on_run = |run: &GridRun<'_>| match &logs {
+        Some(dir) => write_logs(dir, run),
+        None => Ok(()),
+    };
     let records = grid
-        .run(jobs.max(1), &make, &progress)
+        .run_with(jobs.max(1), &make, &progress, &on_run)
         .with_context(|| format!("running the scenario {}", path.display()))?;
+    if let Some(dir) = &logs {
+        println!("wrote the runs' MCAP logs to {}", dir.display());
+    }
     let rows = records
         .iter()
         .map(|r| Row::of(r, &grid))

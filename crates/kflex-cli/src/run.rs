@@ -94,6 +94,11 @@ pub struct RunArgs {
     /// db/ from `kflex-cli build-db`), where the estimators load them from.
     #[arg(long, value_name = "DIR", default_value = crate::models::DEFAULT_DIR, requires = "scenario")]
     models: PathBuf,
+    /// With --scenario and --out: write every run's MCAP log (joint states
+    /// for Foxglove, the scenario and seed as metadata) to DIR/runs/, one
+    /// per estimator of the run (about 0.8 MB per run of five periods).
+    #[arg(long, requires_all = ["scenario", "out"])]
+    mcap: bool,
     /// The flags above given on the command line (not defaulted), by id.
     #[arg(skip)]
     given: Vec<&'static str>,
@@ -215,6 +220,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             &crate::models::Models::new(&args.models),
             args.jobs,
             args.out.as_ref(),
+            args.mcap,
         );
     }
     if args.sheath.is_empty() {

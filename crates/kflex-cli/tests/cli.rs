@@ -697,6 +697,7 @@ fn a_scenario_naming_what_cannot_run_is_refused_before_any_run() {
     // the flags of the Table IX run do not mix with a scenario
     assert_refused(&["run", "--scenario", path, "--sheath", "90"], "--sheath");
     assert_refused(&["run", "--jobs", "2"], "--scenario");
+    assert_refused(&["run", "--scenario", path, "--mcap"], "--out");
     assert_refused(
         &["run", "--scenario", "/nonexistent/kflex.toml"],
         "/nonexistent/kflex.toml",
@@ -775,11 +776,60 @@ periods = 1.0
         models.to_str().unwrap(),
         "--out",
         out_dir.to_str().unwrap(),
+        "--mcap",
     ]);
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
+    );
+    // a log per estimator of each run, each with a message per evaluated tick
+    let mut logs: Vec<String> = std::fs::read_dir(out_dir.join("runs"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    logs.sort();
+    assert_eq!(
+        logs,
+        [
+            "IX_90deg_0pct_ibjae_seed2020.mcap",
+            "IX_90deg_0pct_kbjae_seed2020.mcap",
+            "IX_90deg_0pct_lbhjae-adaptive_seed2020.mcap",
+            "IX_90deg_0pct_lbhjae_seed2020.mcap",
+            "IX_90deg_0pct_none_seed2020.mcap",
+            "V_0deg_20pct_ibjae_seed2020.mcap",
+            "V_0deg_20pct_kbjae_seed2020.mcap",
+            "V_0deg_20pct_lbhjae-adaptive_seed2020.mcap",
+            "V_0deg_20pct_lbhjae_seed2020.mcap",
+        ]
+    );
+    let estimates = |name: &str| -> Vec<Option<f64>> {
+        let bytes = std::fs::read(out_dir.join("runs").join(name)).unwrap();
+        mcap::MessageStream::new(&bytes)
+            .unwrap()
+            .map(|m| {
+                let m = m.unwrap();
+                assert_eq!(m.channel.topic, "/kflex/joint_states");
+                let state: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
+                state["theta_hat_deg"].as_f64()
+            })
+            .collect()
+    };
+    let (kbjae, ibjae) = (
+        estimates("V_0deg_20pct_kbjae_seed2020.mcap"),
+        estimates("V_0deg_20pct_ibjae_seed2020.mcap"),
+    );
+    // one period of the input (1 / 0.159 Hz = 6.29 s) at 10 ms ticks
+    assert_eq!(kbjae.len(), ibjae.len());
+    assert_eq!(kbjae.len(), 629);
+    assert_ne!(
+        kbjae, ibjae,
+        "each log carries its own estimator's estimate"
+    );
+    assert!(
+        estimates("IX_90deg_0pct_none_seed2020.mcap")
+            .iter()
+            .all(Option::is_none)
     );
     let text = std::fs::read_to_string(out_dir.join("results.json")).unwrap();
     let json: serde_json::Value = serde_json::from_str(&text).unwrap();

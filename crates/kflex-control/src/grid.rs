@@ -262,6 +262,7 @@ impl ExperimentGrid {
         case: &Case,
         estimators: &[EstimatorKind],
         make: &MakeEstimator<'_>,
+        on_run: &OnRun<'_>,
     ) -> Result<Vec<Record>> {
         let mut scenario = self.scenario.clone();
         scenario.frames.occlusion = case.occlusion.occlusion();
@@ -293,6 +294,22 @@ impl ExperimentGrid {
                 .collect::<Result<Vec<_>>>()?;
             let mut all = Fanout::new(members);
             let trace: ClosedLoopTrace = scenario.run(&mut plant, &mut all, seed)?;
+            // each estimator's estimates over the evaluated ticks
+            let evaluated = trace.theta_hat_deg.len();
+            let estimates: Vec<&[Option<f64>]> = all
+                .hats
+                .iter()
+                .map(|h| &h[h.len().saturating_sub(evaluated)..])
+                .collect();
+            on_run(&GridRun {
+                case,
+                seed,
+                background,
+                scenario: &scenario,
+                estimators,
+                estimates: &estimates,
+                trace: &trace,
+            })?;
             match case.kind {
                 CaseKind::Estimation => {
                     for (i, out) in rmse.iter_mut().enumerate() {
@@ -352,6 +369,23 @@ impl ExperimentGrid {
         make: &MakeEstimator<'_>,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<Vec<Record>> {
+        self.run_with(jobs, make, progress, &|_| Ok(()))
+    }
+
+    /// [`ExperimentGrid::run`], handing every run to `on_run` as it ends
+    /// (on the thread that ran it; to log or plot it): its case, seed,
+    /// scenario, trace and each estimator's estimates.
+    ///
+    /// # Errors
+    /// As [`ExperimentGrid::run`], and `on_run`'s error, which stops the
+    /// grid as a failed run does.
+    pub fn run_with(
+        &self,
+        jobs: usize,
+        make: &MakeEstimator<'_>,
+        progress: &(dyn Fn(usize, usize) + Sync),
+        on_run: &OnRun<'_>,
+    ) -> Result<Vec<Record>> {
         use std::sync::Mutex;
         use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
         self.validate()?;
@@ -386,7 +420,7 @@ impl ExperimentGrid {
                     return;
                 }
                 let (case, estimators) = &pairs[i];
-                let result = self.run_case(case, estimators, make);
+                let result = self.run_case(case, estimators, make, on_run);
                 failed.fetch_or(result.is_err(), Ordering::Relaxed);
                 if let Ok(mut r) = results.lock() {
                     r[i] = Some(result);
@@ -421,6 +455,31 @@ impl ExperimentGrid {
 
 /// Builds a fresh estimator of a kind for one run (shared by the grid's threads).
 pub type MakeEstimator<'a> = dyn Fn(EstimatorKind) -> Result<Box<dyn AngleEstimator>> + Sync + 'a;
+
+/// Called with every run of a grid as it ends ([`ExperimentGrid::run_with`]).
+pub type OnRun<'a> = dyn Fn(&GridRun<'_>) -> Result<()> + Sync + 'a;
+
+/// One run of a grid: a case, a repeat, and what came of it.
+#[derive(Debug)]
+pub struct GridRun<'a> {
+    /// The case.
+    pub case: &'a Case,
+    /// The repeat's seed (plant, noise, frames).
+    pub seed: u64,
+    /// The repeat's background.
+    pub background: Background,
+    /// The scenario as run: the grid's, with the case's tape and, for a
+    /// compensation run with an estimator, the compensator.
+    pub scenario: &'a ClosedLoopScenario,
+    /// The estimators on the run: several on an estimation run (they share
+    /// it), one on a compensation run (`None`: the uncompensated plant).
+    pub estimators: &'a [EstimatorKind],
+    /// Each estimator's estimate after every evaluated tick, deg (`None`
+    /// before it had one), aligned with `trace`.
+    pub estimates: &'a [&'a [Option<f64>]],
+    /// The run; its `theta_hat_deg` is the first estimator's.
+    pub trace: &'a ClosedLoopTrace,
+}
 
 /// Several estimators on one run: every tick goes to each, the camera
 /// renders what the most demanding of them asks for (the union of their

@@ -66,7 +66,8 @@ pub use error::{ControlError, Result};
 pub use estimators::IbjaeAlone;
 pub use experiment::{GridRow, OpenLoopGrid, OpenLoopScenario, RunMetrics, Trace};
 pub use grid::{
-    Case, CaseKind, EstimatorKind, ExperimentGrid, MakeEstimator, OcclusionCase, Record,
+    Case, CaseKind, EstimatorKind, ExperimentGrid, GridRun, MakeEstimator, OcclusionCase, OnRun,
+    Record,
 };
 #[cfg(feature = "mcap")]
 pub use mcap_log::{JOINT_STATE_SCHEMA, JOINT_STATE_SCHEMA_NAME, JOINT_STATES_TOPIC, JointState};

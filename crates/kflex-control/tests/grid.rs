@@ -254,3 +254,88 @@ fn an_estimation_cases_estimators_share_its_runs() {
         "{both:?}"
     );
 }
+
+/// `run_with` hands over every run as it ends: each case's repeats, the
+/// estimators on it and each one's estimates beside the trace, whose own
+/// estimate is the first estimator's; the records are `run`'s; an error of
+/// the hook stops the grid.
+#[test]
+fn every_run_is_handed_over_with_each_estimators_estimates() {
+    let make = |kind: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
+        let sigma = if kind == EstimatorKind::Kbjae {
+            0.5
+        } else {
+            3.0
+        };
+        Ok(Box::new(NoisyTruth::new(sigma, 4)?))
+    };
+    let grid = ExperimentGrid {
+        estimators: vec![
+            EstimatorKind::None,
+            EstimatorKind::Kbjae,
+            EstimatorKind::Ibjae,
+        ],
+        ..small()
+    };
+    let seen = Mutex::new(Vec::new());
+    let records = grid
+        .run_with(2, &make, &|_, _| {}, &|run| {
+            let n = run.trace.trace.theta_a_deg.len();
+            assert_eq!(run.estimates.len(), run.estimators.len());
+            for e in run.estimates {
+                assert_eq!(e.len(), n);
+            }
+            assert_eq!(run.estimates[0], &run.trace.theta_hat_deg[..]);
+            // the estimation run's second estimator reads the same truth with more noise
+            if run.estimators.len() == 2 {
+                let err = |e: &[Option<f64>]| {
+                    e.iter()
+                        .zip(&run.trace.trace.theta_a_deg)
+                        .filter_map(|(h, a)| h.map(|h| (h - a).abs()))
+                        .sum::<f64>()
+                };
+                assert!(err(run.estimates[1]) > 2.0 * err(run.estimates[0]));
+            }
+            assert_eq!(
+                run.scenario.frames.occlusion,
+                run.case.occlusion.occlusion()
+            );
+            seen.lock().unwrap().push((
+                run.case.table.clone(),
+                run.estimators.to_vec(),
+                run.seed,
+                run.background,
+            ));
+            Ok(())
+        })
+        .unwrap();
+    let mut seen = seen.into_inner().unwrap();
+    seen.sort_by_key(|(t, e, s, _)| (t.clone(), e.len(), *s, e.first().map(|k| k.name())));
+    use EstimatorKind::{Ibjae, Kbjae, None as Plain};
+    let expected = [
+        ("V", vec![Kbjae, Ibjae], 2020, Background::Colon),
+        ("V", vec![Kbjae, Ibjae], 2021, Background::Stomach),
+        ("VIII", vec![Ibjae], 2020, Background::Colon),
+        ("VIII", vec![Kbjae], 2020, Background::Colon),
+        ("VIII", vec![Plain], 2020, Background::Colon),
+        ("VIII", vec![Ibjae], 2021, Background::Stomach),
+        ("VIII", vec![Kbjae], 2021, Background::Stomach),
+        ("VIII", vec![Plain], 2021, Background::Stomach),
+    ];
+    let mut expected: Vec<(String, Vec<EstimatorKind>, u64, Background)> = expected
+        .into_iter()
+        .map(|(t, e, s, b)| (t.to_string(), e, s, b))
+        .collect();
+    expected.sort_by_key(|(t, e, s, _)| (t.clone(), e.len(), *s, e.first().map(|k| k.name())));
+    assert_eq!(seen, expected);
+    assert_eq!(records, grid.run(1, &make, &|_, _| {}).unwrap());
+    // the hook's error stops the grid
+    let err = grid
+        .run_with(1, &make, &|_, _| {}, &|_| {
+            Err(ControlError::Unavailable {
+                what: "a full disk".into(),
+            })
+        })
+        .unwrap_err();
+    assert!(err.to_string().contains("a full disk"), "{err}");
+}
