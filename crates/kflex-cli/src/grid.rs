@@ -155,18 +155,36 @@ fn write_logs(dir: &Path, run: &GridRun<'_>) -> kflex_control::Result<()> {
     Ok(())
 }
 
+/// How a scenario runs.
+pub struct Options<'a> {
+    /// Threads.
+    pub jobs: usize,
+    /// [`ExperimentGrid::quick`] instead of the whole grid.
+    pub quick: bool,
+    /// Where the results (and logs) go.
+    pub out: Option<&'a PathBuf>,
+    /// Every run's MCAP log to `out/runs/`.
+    pub mcap: bool,
+}
+
 /// Runs the scenario: `estimators` replace the file's when given; the
-/// estimators load their models from `models`; with `mcap`, every run's
-/// log goes to `out/runs/`.
+/// estimators load their models from `models`.
 pub fn run(
     path: &Path,
     estimators: Option<&[String]>,
     models: &Models,
-    jobs: usize,
-    out: Option<&PathBuf>,
-    mcap: bool,
+    options: Options<'_>,
 ) -> Result<()> {
+    let Options {
+        jobs,
+        quick,
+        out,
+        mcap,
+    } = options;
     let mut grid = load(path)?;
+    if quick {
+        grid = grid.quick();
+    }
     if let Some(names) = estimators {
         grid.estimators = names.iter().map(|n| estimator(n)).collect::<Result<_>>()?;
     }
@@ -186,8 +204,9 @@ pub fn run(
     }
     let total_cases = grid.cases.len();
     println!(
-        "kflex run — scenario {} ({total_cases} case{}, estimators {}, {} repeat{}, seeds {}.., {} period{} of the input)",
+        "kflex run — scenario {}{} ({total_cases} case{}, estimators {}, {} repeat{}, seeds {}.., {} period{} of the input, {jobs} thread{})",
         path.display(),
+        if quick { ", quick" } else { "" },
         if total_cases == 1 { "" } else { "s" },
         grid.estimators
             .iter()
@@ -203,6 +222,7 @@ pub fn run(
         } else {
             "s"
         },
+        if jobs == 1 { "" } else { "s" },
     );
     let progress = |done: usize, total: usize| {
         eprint!("\r  {done}/{total} runs of the grid done");

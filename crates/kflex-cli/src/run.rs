@@ -86,10 +86,14 @@ pub struct RunArgs {
     /// ibjae, lbhjae, lbhjae-adaptive), replacing the file's.
     #[arg(long, value_delimiter = ',', requires = "scenario")]
     estimators: Option<Vec<String>>,
-    /// With --scenario: threads running the grid's cases (the results are the
-    /// same for any count).
-    #[arg(long, default_value_t = 2, requires = "scenario")]
-    jobs: usize,
+    /// With --scenario: threads running the grid's cases (default: one per
+    /// core; the results are the same for any count).
+    #[arg(long, requires = "scenario")]
+    jobs: Option<usize>,
+    /// With --scenario: a reduced grid for a fast look: each table's first
+    /// and last case, one repeat, one period of the input.
+    #[arg(long, requires = "scenario")]
+    quick: bool,
     /// With --scenario: the trained models' directory (kbjae.onnx, scnn.onnx,
     /// db/ from `kflex-cli build-db`), where the estimators load them from.
     #[arg(long, value_name = "DIR", default_value = crate::models::DEFAULT_DIR, requires = "scenario")]
@@ -218,9 +222,14 @@ pub fn run(args: &RunArgs) -> Result<()> {
             path,
             args.estimators.as_deref(),
             &crate::models::Models::new(&args.models),
-            args.jobs,
-            args.out.as_ref(),
-            args.mcap,
+            crate::grid::Options {
+                jobs: args.jobs.unwrap_or_else(|| {
+                    std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+                }),
+                quick: args.quick,
+                out: args.out.as_ref(),
+                mcap: args.mcap,
+            },
         );
     }
     if args.sheath.is_empty() {

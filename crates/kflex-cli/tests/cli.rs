@@ -890,3 +890,51 @@ fn build_db_refuses_a_missing_model_and_bad_steps() {
     );
     assert!(!Path::new(out).exists());
 }
+
+#[test]
+fn quick_runs_each_tables_first_and_last_case_once() {
+    let dir = scratch("quick");
+    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenarios/paper.toml");
+    let out = kflex(&[
+        "run",
+        "--scenario",
+        scenario.to_str().unwrap(),
+        "--estimators",
+        "none",
+        "--quick",
+        "--jobs",
+        "1",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout_of(&out).contains(", quick"), "{}", stdout_of(&out));
+    let text = std::fs::read_to_string(dir.join("results.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let cases: Vec<String> = json["records"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            assert_eq!(r["repeats"], 1);
+            assert_eq!(r["periods"], 1.0);
+            format!("{} {} {}", r["table"], r["sheath_deg"], r["occlusion"]).replace('"', "")
+        })
+        .collect();
+    // the uncompensated plant runs in the compensation tables only
+    assert_eq!(
+        cases,
+        [
+            "VIII 0.0 0%",
+            "VIII 0.0 40% distal",
+            "IX 0.0 0%",
+            "IX 270.0 0%",
+            "X 270.0 40%",
+            "X 270.0 40% distal",
+        ]
+    );
+}

@@ -222,6 +222,27 @@ impl ExperimentGrid {
         grid
     }
 
+    /// A reduced grid for a fast look: of each table's cases the first and
+    /// the last, one repeat, one period of the input (its pre-roll kept).
+    #[must_use]
+    pub fn quick(&self) -> Self {
+        let mut cases: Vec<Case> = Vec::new();
+        for (i, c) in self.cases.iter().enumerate() {
+            let first = !cases.iter().any(|k| k.table == c.table);
+            let last = !self.cases[i + 1..].iter().any(|k| k.table == c.table);
+            if first || last {
+                cases.push(c.clone());
+            }
+        }
+        let mut grid = Self {
+            cases,
+            repeats: 1,
+            ..self.clone()
+        };
+        grid.scenario.motion.periods = 1.0;
+        grid
+    }
+
     /// Checks every setting before any run.
     ///
     /// # Errors

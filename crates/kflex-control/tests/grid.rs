@@ -339,3 +339,41 @@ fn every_run_is_handed_over_with_each_estimators_estimates() {
         .unwrap_err();
     assert!(err.to_string().contains("a full disk"), "{err}");
 }
+
+#[test]
+fn the_quick_grid_keeps_each_tables_first_and_last_case() {
+    let quick = ExperimentGrid::paper().quick();
+    let cases: Vec<(String, f64, &str)> = quick
+        .cases
+        .iter()
+        .map(|c| (c.table.clone(), c.sheath_deg, c.occlusion.name()))
+        .collect();
+    let expected: Vec<(String, f64, &str)> = [
+        ("V", 0.0, "0%"),
+        ("V", 0.0, "40% distal"),
+        ("VI", 0.0, "0%"),
+        ("VI", 270.0, "0%"),
+        ("VII", 270.0, "40%"),
+        ("VII", 270.0, "40% distal"),
+        ("VIII", 0.0, "0%"),
+        ("VIII", 0.0, "40% distal"),
+        ("IX", 0.0, "0%"),
+        ("IX", 270.0, "0%"),
+        ("X", 270.0, "40%"),
+        ("X", 270.0, "40% distal"),
+    ]
+    .iter()
+    .map(|&(t, s, o)| (t.to_string(), s, o))
+    .collect();
+    assert_eq!(cases, expected);
+    assert_eq!(quick.repeats, 1);
+    assert_eq!(quick.scenario.motion.periods, 1.0);
+    assert_eq!(quick.estimators, ExperimentGrid::paper().estimators);
+    // a table of one case keeps it once
+    let one = ExperimentGrid::paper_table("IX");
+    let one = ExperimentGrid {
+        cases: one.cases[..1].to_vec(),
+        ..one
+    };
+    assert_eq!(one.quick().cases.len(), 1);
+}
