@@ -75,12 +75,19 @@ pub struct Row {
 impl Row {
     fn of(record: &Record, grid: &ExperimentGrid) -> Result<Row> {
         let case = &record.case;
-        let (paper_rmse, paper_width) = paper::figure(
-            &case.table,
-            record.estimator.name(),
-            case.sheath_deg,
-            case.occlusion.name(),
-        )?;
+        // the paper's tables V–VII are estimation, VIII–X compensation: a
+        // case of the other kind has no paper figure
+        let estimation_table = matches!(case.table.as_str(), "V" | "VI" | "VII");
+        let (paper_rmse, paper_width) = if estimation_table == (case.kind == CaseKind::Estimation) {
+            paper::figure(
+                &case.table,
+                record.estimator.name(),
+                case.sheath_deg,
+                case.occlusion.name(),
+            )?
+        } else {
+            (None, None)
+        };
         let h = |i: usize, f: fn(&MeanStd) -> f64| record.hysteresis.as_ref().map(|h| f(&h[i]));
         Ok(Row {
             kind: match case.kind {
@@ -181,6 +188,7 @@ pub fn run(
         out,
         mcap,
     } = options;
+    let jobs = jobs.max(1);
     let mut grid = load(path)?;
     if quick {
         grid = grid.quick();
@@ -199,7 +207,7 @@ pub fn run(
         .filter(|&&k| k != EstimatorKind::None)
     {
         if let Err(e) = make(kind) {
-            bail!("{e}");
+            return Err(anyhow::Error::new(e));
         }
     }
     let total_cases = grid.cases.len();
@@ -243,8 +251,19 @@ pub fn run(
         Some(dir) => write_logs(dir, run),
         None => Ok(()),
     };
+    let runnable = grid.cases.iter().any(|c| match c.kind {
+        CaseKind::Estimation => grid.estimators.iter().any(|&e| e != EstimatorKind::None),
+        CaseKind::Compensation => !grid.estimators.is_empty(),
+    });
+    if !runnable {
+        bail!(
+            "nothing to run in {}: its cases are estimation cases and its only estimator is \
+             none (the uncompensated plant runs in compensation cases only)",
+            path.display()
+        );
+    }
     let records = grid
-        .run_with(jobs.max(1), &make, &progress, &on_run)
+        .run_with(jobs, &make, &progress, &on_run)
         .with_context(|| format!("running the scenario {}", path.display()))?;
     if let Some(dir) = &logs {
         println!("wrote the runs' MCAP logs to {}", dir.display());
@@ -321,11 +340,21 @@ fn csv(rows: &[Row]) -> String {
             r.periods.to_string(),
             r.dt_s.to_string(),
         ];
-        // the occlusion names ("40% distal") hold no comma or quote
+        let cells: Vec<String> = cells.iter().map(|c| csv_cell(c)).collect();
         s.push_str(&cells.join(","));
         s.push('\n');
     }
     s
+}
+
+/// A CSV cell: quoted (its quotes doubled) where it holds a comma, a quote
+/// or a line break (a scenario's table names are free text).
+fn csv_cell(cell: &str) -> String {
+    if cell.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", cell.replace('"', "\"\""))
+    } else {
+        cell.to_owned()
+    }
 }
 
 fn pm(mean: f64, std: f64) -> String {

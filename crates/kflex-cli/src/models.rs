@@ -87,12 +87,13 @@ impl Models {
             let files: Vec<String> = missing.iter().map(|f| f.display().to_string()).collect();
             return Err(ControlError::Unavailable {
                 what: format!(
-                    "the estimator {} needs {}: kflex does not ship trained models yet \
-                     (training/README.md trains them, `kflex-cli build-db` builds the \
-                     databases); give the directory that holds them with --models, or run \
-                     with --estimators none",
+                    "the estimator {} needs {}, which {} not there: kflex ships no trained \
+                     models yet (training/README.md trains them, `kflex-cli build-db` builds \
+                     the databases); give the directory that holds them with --models, or \
+                     run with --estimators none",
                     kind.name(),
-                    files.join(" and ")
+                    files.join(" and "),
+                    if files.len() == 1 { "is" } else { "are" }
                 ),
             });
         }

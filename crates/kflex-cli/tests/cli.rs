@@ -938,3 +938,69 @@ fn quick_runs_each_tables_first_and_last_case_once() {
         ]
     );
 }
+
+#[test]
+fn a_scenarios_own_tables_get_no_paper_figure_and_quoted_csv_cells() {
+    let dir = scratch("own-tables");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("own.toml");
+    std::fs::write(
+        &file,
+        r#"
+estimators = ["none", "none"]
+repeats = 1
+[[cases]]
+table = "V"
+kind = "compensation"
+sheath_deg = 0.0
+occlusion = "0%"
+[[cases]]
+table = "mine, \"bent\""
+kind = "compensation"
+sheath_deg = 45.0
+occlusion = "0%"
+[scenario.motion]
+periods = 1.0
+"#,
+    )
+    .unwrap();
+    let out_dir = dir.join("out");
+    let out = kflex(&[
+        "run",
+        "--scenario",
+        file.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(out_dir.join("results.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let records = json["records"].as_array().unwrap();
+    // "none" named twice runs once; Table V is estimation, so a compensation
+    // case labelled V has no paper figure
+    assert_eq!(records.len(), 2);
+    assert!(records[0]["paper_rmse_deg"].is_null(), "{}", records[0]);
+    assert_eq!(records[1]["table"], "mine, \"bent\"");
+    let csv = std::fs::read_to_string(out_dir.join("results.csv")).unwrap();
+    let line = csv.lines().nth(2).unwrap();
+    assert!(
+        line.starts_with("compensation,\"mine, \"\"bent\"\"\",none,45,"),
+        "{line}"
+    );
+    // an estimation-only scenario with only the uncompensated plant: nothing to run
+    let v = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenarios/table_v.toml");
+    assert_refused(
+        &[
+            "run",
+            "--scenario",
+            v.to_str().unwrap(),
+            "--estimators",
+            "none",
+        ],
+        "nothing to run",
+    );
+}

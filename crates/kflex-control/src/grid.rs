@@ -223,7 +223,8 @@ impl ExperimentGrid {
     }
 
     /// A reduced grid for a fast look: of each table's cases the first and
-    /// the last, one repeat, one period of the input (its pre-roll kept).
+    /// the last, one repeat, at most one period of the input (its pre-roll
+    /// kept).
     #[must_use]
     pub fn quick(&self) -> Self {
         let mut cases: Vec<Case> = Vec::new();
@@ -239,7 +240,7 @@ impl ExperimentGrid {
             repeats: 1,
             ..self.clone()
         };
-        grid.scenario.motion.periods = 1.0;
+        grid.scenario.motion.periods = grid.scenario.motion.periods.min(1.0);
         grid
     }
 
@@ -370,9 +371,9 @@ impl ExperimentGrid {
             .collect()
     }
 
-    /// Runs every case with every estimator on `jobs` threads (at least
-    /// one; the records come in the grid's order whatever the count, and
-    /// are the same); `make` builds a fresh estimator of a kind for each run
+    /// Runs every case with every estimator (an estimator named twice runs
+    /// once) on `jobs` threads (at least one; the records come in the grid's
+    /// order whatever the count, and are the same); `make` builds a fresh estimator of a kind for each run
     /// (the paper's are loaded from their model files; see the feature
     /// `estimators`). An estimation case's estimators share its runs (the
     /// issue: all estimators on the same run). `progress` is called after
@@ -410,10 +411,16 @@ impl ExperimentGrid {
         use std::sync::Mutex;
         use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
         self.validate()?;
+        // an estimator named twice runs once
+        let mut estimators: Vec<EstimatorKind> = Vec::new();
+        for &e in &self.estimators {
+            if !estimators.contains(&e) {
+                estimators.push(e);
+            }
+        }
         // an estimation case is one job (its estimators share each run), a
         // compensation case one job per estimator
-        let estimating: Vec<EstimatorKind> = self
-            .estimators
+        let estimating: Vec<EstimatorKind> = estimators
             .iter()
             .copied()
             .filter(|&e| e != EstimatorKind::None)
@@ -423,7 +430,7 @@ impl ExperimentGrid {
             .iter()
             .flat_map(|c| match c.kind {
                 CaseKind::Estimation => vec![(c, estimating.clone())],
-                CaseKind::Compensation => self.estimators.iter().map(|&e| (c, vec![e])).collect(),
+                CaseKind::Compensation => estimators.iter().map(|&e| (c, vec![e])).collect(),
             })
             .filter(|(_, e)| !e.is_empty())
             .collect();

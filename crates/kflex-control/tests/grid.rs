@@ -377,3 +377,25 @@ fn the_quick_grid_keeps_each_tables_first_and_last_case() {
     };
     assert_eq!(one.quick().cases.len(), 1);
 }
+
+#[test]
+fn an_estimator_named_twice_runs_once() {
+    let make = |_: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
+        Ok(Box::new(NoisyTruth::new(1.0, 9)?))
+    };
+    let twice = ExperimentGrid {
+        estimators: vec![
+            EstimatorKind::Kbjae,
+            EstimatorKind::None,
+            EstimatorKind::Kbjae,
+        ],
+        ..small()
+    };
+    let once = ExperimentGrid {
+        estimators: vec![EstimatorKind::Kbjae, EstimatorKind::None],
+        ..small()
+    };
+    let run = |g: &ExperimentGrid| g.run(1, &make, &|_, _| {}).unwrap();
+    assert_eq!(run(&twice), run(&once));
+    assert_eq!(run(&once).len(), 3);
+}

@@ -18,6 +18,10 @@ use crate::scnn::Scnn;
 /// The extension of a band's database file.
 pub const DATABASE_EXT: &str = "kfdb";
 
+/// The file of a database directory that holds its count of bands (a
+/// directory short of a band is an error, not fewer bands).
+pub const MANIFEST: &str = "bands";
+
 /// The file of band `i` in a database directory.
 #[must_use]
 pub fn database_file(dir: &Path, i: usize) -> PathBuf {
@@ -55,22 +59,36 @@ pub fn build_databases(
         .collect()
 }
 
-/// Writes `bands` into the directory `dir` as `band-000.kfdb`, …: first into
-/// a new directory beside it, which then takes `dir`'s place, so `dir` holds
-/// either the old databases or all the new ones, never a mixture; files of
-/// `dir` that are not databases are kept.
+/// Writes `bands` into the directory `dir` as `band-000.kfdb`, … and their
+/// count ([`MANIFEST`]): first into a new directory beside it, which then
+/// takes `dir`'s place, so `dir` holds either the old databases or all the
+/// new ones, never a mixture (between the two renames `dir` is briefly
+/// absent; a crash there leaves the old databases in `.NAME.old-PID` beside
+/// it); files of `dir` that are not databases are kept.
 ///
 /// # Errors
 /// [`EstimateError::Io`] naming the file or directory that could not be
-/// written or moved (the new directory is removed again);
-/// [`EstimateError::EmptyIndex`] for no bands.
+/// written or moved (the new directory is removed again), or kind
+/// `InvalidInput` for a `dir` that is a file, has no name of its own (`.`,
+/// `..`, `/`) or holds a directory; [`EstimateError::EmptyIndex`] for no bands.
 pub fn save_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
     if bands.is_empty() {
         return Err(EstimateError::EmptyIndex);
     }
-    let name = dir
-        .file_name()
-        .map_or_else(|| "databases".into(), |n| n.to_string_lossy().into_owned());
+    let refuse = |message: &str| EstimateError::Io {
+        path: dir.to_path_buf(),
+        kind: std::io::ErrorKind::InvalidInput,
+        message: message.to_string(),
+    };
+    // the directory is swapped whole, so it must have a name of its own
+    let Some(name) = dir.file_name().map(|n| n.to_string_lossy().into_owned()) else {
+        return Err(refuse(
+            "not a directory by name (`.`, `..` or `/`): give the databases' own directory",
+        ));
+    };
+    if dir.exists() && !dir.is_dir() {
+        return Err(refuse("exists and is not a directory"));
+    }
     let parent = dir.parent().filter(|p| !p.as_os_str().is_empty());
     let sibling = |tag: &str| {
         let n = format!(".{name}.{tag}-{}", std::process::id());
@@ -89,15 +107,29 @@ pub fn save_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
         for (i, b) in bands.iter().enumerate() {
             b.index.save(database_file(&fresh, i))?;
         }
+        let manifest = fresh.join(MANIFEST);
+        std::fs::write(&manifest, format!("{}\n", bands.len())).map_err(io(&manifest))?;
         // what else the old directory holds (a README, a card) stays
         if dir.is_dir() {
             for entry in std::fs::read_dir(dir).map_err(io(dir))? {
                 let entry = entry.map_err(io(dir))?;
                 let path = entry.path();
-                if path.extension().and_then(|e| e.to_str()) != Some(DATABASE_EXT) {
-                    let to = fresh.join(entry.file_name());
-                    std::fs::copy(&path, &to).map_err(io(&path))?;
+                let ours = path.extension().and_then(|e| e.to_str()) == Some(DATABASE_EXT)
+                    || entry.file_name() == MANIFEST;
+                if ours {
+                    continue;
                 }
+                if path.is_dir() {
+                    return Err(EstimateError::Io {
+                        path,
+                        kind: std::io::ErrorKind::InvalidInput,
+                        message: "a directory inside the databases' directory: move it out \
+                                  first (the databases' directory is replaced whole)"
+                            .into(),
+                    });
+                }
+                let to = fresh.join(entry.file_name());
+                std::fs::copy(&path, &to).map_err(io(&path))?;
             }
         }
         Ok(())
@@ -127,25 +159,34 @@ pub fn save_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
     Ok(())
 }
 
-/// Reads the databases of `dir` (`band-000.kfdb`, … up to the first missing
-/// number), each checked against `camera`: a database rendered through
-/// another camera (intrinsics, lens or mounting) would answer for silhouettes
-/// that camera sees, not this one's.
+/// Reads the databases of `dir` (as many as its [`MANIFEST`] counts,
+/// `band-000.kfdb`, …), each checked against `camera`: a database rendered
+/// through another camera (intrinsics, lens or mounting) would answer for
+/// silhouettes that camera sees, not this one's.
 ///
 /// # Errors
-/// [`EstimateError::Io`] when `dir` holds no `band-000.kfdb` (kind
-/// `NotFound`) or a file cannot be read; as [`FeatureIndex::load`] and
+/// [`EstimateError::Io`] when the manifest or a band's file is missing (kind
+/// `NotFound`) or cannot be read; [`EstimateError::ModelFile`] for a
+/// manifest that is not a count; as [`FeatureIndex::load`] and
 /// [`BandDatabase::from_index`] for a damaged file;
 /// [`EstimateError::ModelMismatch`] naming both cameras for a database
 /// built for another camera.
 pub fn load_databases(dir: &Path, camera: &Camera) -> Result<Vec<BandDatabase>> {
     let expected = camera_key(camera);
-    let mut bands = Vec::new();
-    loop {
-        let path = database_file(dir, bands.len());
-        if !bands.is_empty() && !path.exists() {
-            break;
-        }
+    let manifest = dir.join(MANIFEST);
+    let text = std::fs::read_to_string(&manifest).map_err(|e| EstimateError::io(&manifest, &e))?;
+    let count: usize =
+        text.trim()
+            .parse()
+            .ok()
+            .filter(|&n| n > 0)
+            .ok_or_else(|| EstimateError::ModelFile {
+                path: manifest.display().to_string(),
+                message: format!("not a count of bands: {:?}", text.trim()),
+            })?;
+    let mut bands = Vec::with_capacity(count);
+    for i in 0..count {
+        let path = database_file(dir, i);
         let index = FeatureIndex::load(&path)?;
         let found = index
             .metadata()

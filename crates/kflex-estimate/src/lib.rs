@@ -103,7 +103,9 @@ mod scnn;
 mod segment;
 
 #[cfg(all(feature = "onnx", feature = "index"))]
-pub use database::{DATABASE_EXT, build_databases, database_file, load_databases, save_databases};
+pub use database::{
+    DATABASE_EXT, MANIFEST, build_databases, database_file, load_databases, save_databases,
+};
 pub use error::{EstimateError, Result};
 pub use fusion::{
     AdaptiveKalman, AdaptiveParams, Estimate, FilterRate, Fusion, KalmanParams, Measurements,

@@ -97,10 +97,23 @@ fn a_database_of_another_camera_or_a_damaged_one_is_refused() {
     match load_databases(&empty, &camera) {
         Err(EstimateError::Io { kind, path, .. }) => {
             assert_eq!(kind, std::io::ErrorKind::NotFound);
-            assert_eq!(path, database_file(&empty, 0));
+            assert_eq!(path, empty.join(kflex_estimate::MANIFEST));
         }
         other => panic!("expected not found, got {other:?}"),
     }
+    // a band's file gone: an error naming it, not fewer bands
+    let gone = database_file(&dir, 5);
+    let kept = std::fs::read(&gone).unwrap();
+    std::fs::remove_file(&gone).unwrap();
+    match load_databases(&dir, &camera) {
+        Err(EstimateError::Io { kind, path, .. }) => {
+            assert_eq!(kind, std::io::ErrorKind::NotFound);
+            assert_eq!(path, gone);
+        }
+        other => panic!("expected band 5 not found, got {other:?}"),
+    }
+    std::fs::write(&gone, kept).unwrap();
+    assert_eq!(load_databases(&dir, &camera).unwrap().len(), built.len());
     // a flipped byte in the middle of band 1
     let file = database_file(&dir, 1);
     let mut bytes = std::fs::read(&file).unwrap();
@@ -134,6 +147,32 @@ fn saving_replaces_the_whole_directory_and_keeps_other_files() {
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     assert_eq!(names, ["db"]);
+    // a directory inside, a file in its place, or no name of its own: refused
+    let inside = dir.join("old-runs");
+    std::fs::create_dir(&inside).unwrap();
+    let refused =
+        |target: &std::path::Path, bands: &[kflex_estimate::BandDatabase]| match save_databases(
+            target, bands,
+        ) {
+            Err(EstimateError::Io { kind, .. }) => {
+                assert_eq!(
+                    kind,
+                    std::io::ErrorKind::InvalidInput,
+                    "{}",
+                    target.display()
+                );
+            }
+            other => panic!("{}: expected refused, got {other:?}", target.display()),
+        };
+    refused(&dir, &built[..1]);
+    std::fs::remove_dir(&inside).unwrap();
+    let file = parent.join("a-file");
+    std::fs::write(&file, "not a directory").unwrap();
+    refused(&file, &built[..1]);
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "not a directory");
+    std::fs::remove_file(&file).unwrap();
+    refused(&dir.join(".."), &built[..1]);
+    assert_eq!(load_databases(&dir, &camera).unwrap().len(), 2);
     // no bands is an error and leaves the directory as it was
     assert!(matches!(
         save_databases(&dir, &[]),

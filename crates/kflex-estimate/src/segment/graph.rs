@@ -134,6 +134,8 @@ pub(super) fn keep_components(s: &mut Scratch, min: f32, share_of_largest: f32) 
         ..
     } = s;
     // each component: its regions in `component[start..end]` and its pixels
+    // (whole numbers up to the region of interest's 2²⁴ pixels at most,
+    // `MAX_ROI_PIXELS`, which an f32 holds exactly)
     seen.clear();
     seen.resize(instrument.len(), false);
     component.clear();
