@@ -12,7 +12,9 @@ use serde::Serialize;
 
 use crate::models::Models;
 use crate::paper::{self, Figure};
-use crate::run::{PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, write_atomic};
+use crate::run::{
+    PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, paper_pm, pm, write_atomic,
+};
 
 /// Every estimator a scenario may name.
 const KINDS: [EstimatorKind; 5] = [
@@ -354,17 +356,6 @@ fn csv_cell(cell: &str) -> String {
         format!("\"{}\"", cell.replace('"', "\"\""))
     } else {
         cell.to_owned()
-    }
-}
-
-fn pm(mean: f64, std: f64) -> String {
-    format!("{mean:6.2} ± {std:4.2}")
-}
-
-fn paper_pm(mean: Option<f64>, std: Option<f64>) -> String {
-    match (mean, std) {
-        (Some(m), Some(s)) => pm(m, s),
-        _ => format!("{:>13}", "—"),
     }
 }
 

@@ -341,11 +341,13 @@ fn record(args: &RunArgs, row: &GridRow) -> Result<Record> {
     })
 }
 
-fn pm(mean: f64, std: f64) -> String {
+/// `mean ± std` in a fixed width.
+pub(crate) fn pm(mean: f64, std: f64) -> String {
     format!("{mean:6.2} ± {std:4.2}")
 }
 
-fn paper_pm(mean: Option<f64>, std: Option<f64>) -> String {
+/// A paper figure as [`pm`], or a dash where the paper has none.
+pub(crate) fn paper_pm(mean: Option<f64>, std: Option<f64>) -> String {
     match (mean, std) {
         (Some(m), Some(s)) => pm(m, s),
         _ => format!("{:>13}", "—"),

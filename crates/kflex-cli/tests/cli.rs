@@ -509,6 +509,20 @@ fn fully_taped_instrument_is_an_error() {
     assert!(dir.join("frame.png").exists());
 }
 
+/// Runs `kflex-cli run --scenario FILE ARGS… --out DIR`, which must succeed.
+fn run_scenario(file: &str, args: &[&str], out_dir: &str) -> Output {
+    let mut all = vec!["run", "--scenario", file];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&["--out", out_dir]);
+    let out = kflex(&all);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
 /// A small scenario: Table IX at 90 deg and Table VIII at 40 % tape, one
 /// period, two repeats.
 const SMALL_SCENARIO: &str = r#"
@@ -544,18 +558,7 @@ fn a_scenario_runs_its_grid_and_writes_json_and_csv() {
     let dir = scratch("scenario");
     let file = scenario_file(&dir);
     let out_dir = dir.join("out");
-    let out = kflex(&[
-        "run",
-        "--scenario",
-        file.to_str().unwrap(),
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = run_scenario(file.to_str().unwrap(), &[], out_dir.to_str().unwrap());
     let stdout = stdout_of(&out);
     assert!(
         stdout.contains("Table IX") && stdout.contains("Table VIII"),
@@ -640,19 +643,10 @@ fn a_scenario_gives_the_same_results_on_any_number_of_threads() {
     let file = scenario_file(&dir);
     let json = |jobs: &str| {
         let out_dir = dir.join(format!("out-{jobs}"));
-        let out = kflex(&[
-            "run",
-            "--scenario",
+        run_scenario(
             file.to_str().unwrap(),
-            "--jobs",
-            jobs,
-            "--out",
+            &["--jobs", jobs],
             out_dir.to_str().unwrap(),
-        ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
         );
         std::fs::read_to_string(out_dir.join("results.json")).unwrap()
     };
@@ -768,20 +762,10 @@ periods = 1.0
     )
     .unwrap();
     let out_dir = dir.join("out");
-    let out = kflex(&[
-        "run",
-        "--scenario",
+    run_scenario(
         file.to_str().unwrap(),
-        "--models",
-        models.to_str().unwrap(),
-        "--out",
+        &["--models", models.to_str().unwrap(), "--mcap"],
         out_dir.to_str().unwrap(),
-        "--mcap",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
     );
     // a log per estimator of each run, each with a message per evaluated tick
     let mut logs: Vec<String> = std::fs::read_dir(out_dir.join("runs"))
@@ -895,22 +879,10 @@ fn build_db_refuses_a_missing_model_and_bad_steps() {
 fn quick_runs_each_tables_first_and_last_case_once() {
     let dir = scratch("quick");
     let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenarios/paper.toml");
-    let out = kflex(&[
-        "run",
-        "--scenario",
+    let out = run_scenario(
         scenario.to_str().unwrap(),
-        "--estimators",
-        "none",
-        "--quick",
-        "--jobs",
-        "1",
-        "--out",
+        &["--estimators", "none", "--quick", "--jobs", "1"],
         dir.to_str().unwrap(),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
     );
     assert!(stdout_of(&out).contains(", quick"), "{}", stdout_of(&out));
     let text = std::fs::read_to_string(dir.join("results.json")).unwrap();
@@ -965,18 +937,7 @@ periods = 1.0
     )
     .unwrap();
     let out_dir = dir.join("out");
-    let out = kflex(&[
-        "run",
-        "--scenario",
-        file.to_str().unwrap(),
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    run_scenario(file.to_str().unwrap(), &[], out_dir.to_str().unwrap());
     let text = std::fs::read_to_string(out_dir.join("results.json")).unwrap();
     let json: serde_json::Value = serde_json::from_str(&text).unwrap();
     let records = json["records"].as_array().unwrap();

@@ -224,18 +224,22 @@ fn the_first_failure_in_the_grids_order_stops_it() {
     }
 }
 
+/// Stand-ins for two estimators: the true angle with 0.5 deg of noise for
+/// KBJAE, 3 deg for any other.
+fn two_stand_ins(kind: EstimatorKind) -> kflex_control::Result<Box<dyn AngleEstimator>> {
+    let sigma = if kind == EstimatorKind::Kbjae {
+        0.5
+    } else {
+        3.0
+    };
+    Ok(Box::new(NoisyTruth::new(sigma, 4)?))
+}
+
 #[test]
 fn an_estimation_cases_estimators_share_its_runs() {
     // a stand-in per kind, with its own noise: together on one run they
     // read the same as each alone (the open loop does not depend on them)
-    let make = |kind: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
-        let sigma = if kind == EstimatorKind::Kbjae {
-            0.5
-        } else {
-            3.0
-        };
-        Ok(Box::new(NoisyTruth::new(sigma, 4)?))
-    };
+    let make = two_stand_ins;
     let grid = |estimators: Vec<EstimatorKind>| ExperimentGrid {
         cases: vec![small().cases[0].clone()],
         estimators,
@@ -261,14 +265,7 @@ fn an_estimation_cases_estimators_share_its_runs() {
 /// the hook stops the grid.
 #[test]
 fn every_run_is_handed_over_with_each_estimators_estimates() {
-    let make = |kind: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
-        let sigma = if kind == EstimatorKind::Kbjae {
-            0.5
-        } else {
-            3.0
-        };
-        Ok(Box::new(NoisyTruth::new(sigma, 4)?))
-    };
+    let make = two_stand_ins;
     let grid = ExperimentGrid {
         estimators: vec![
             EstimatorKind::None,
