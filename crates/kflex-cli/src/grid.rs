@@ -11,10 +11,10 @@ use kflex_model::Camera;
 use serde::Serialize;
 
 use crate::models::Models;
-use crate::paper::{self, Figure};
-use crate::run::{
+use crate::output::{
     PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, paper_pm, pm, write_atomic,
 };
+use crate::paper::{self, Figure};
 
 /// Every estimator a scenario may name.
 const KINDS: [EstimatorKind; 5] = [

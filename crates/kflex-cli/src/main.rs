@@ -5,6 +5,7 @@ mod build_db;
 mod config;
 mod grid;
 mod models;
+mod output;
 mod paper;
 mod render;
 mod run;
