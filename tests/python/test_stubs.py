@@ -55,6 +55,7 @@ SAMPLES = {
     "AdaptiveParams": lambda: kflex.AdaptiveParams(),
     "CompensatorConfig": lambda: kflex.CompensatorConfig(),
     "ClosedLoopScenario": lambda: kflex.ClosedLoopScenario(),
+    "ExperimentGrid": lambda: kflex.ExperimentGrid(),
 }
 
 

@@ -9,8 +9,6 @@ use clap::Args;
 use kflex_estimate::{Scnn, build_databases, save_databases};
 use kflex_model::{Camera, Instrument, WorkingRegions};
 
-use crate::models;
-
 #[derive(Debug, Args)]
 pub struct BuildDbArgs {
     /// The SCNN (ONNX) that embeds the silhouettes; the databases hold its
@@ -38,7 +36,7 @@ pub fn build_db(args: &BuildDbArgs) -> Result<()> {
         format!(
             "loading the SCNN {} (kflex's trained SCNN will ship as {}/scnn.onnx)",
             args.scnn.display(),
-            models::DEFAULT_DIR
+            kflex_control::MODELS_DIR
         )
     })?;
     let camera = Camera::default();

@@ -10,11 +10,11 @@ use kflex_control::{CaseKind, EstimatorKind, ExperimentGrid, GridRun, MeanStd, R
 use kflex_model::Camera;
 use serde::Serialize;
 
-use crate::models::Models;
 use crate::output::{
     PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, paper_pm, pm, write_atomic,
 };
 use crate::paper::{self, Figure};
+use kflex_control::ModelDir;
 
 /// Every estimator a scenario may name.
 const KINDS: [EstimatorKind; 5] = [
@@ -181,7 +181,7 @@ pub struct Options<'a> {
 pub fn run(
     path: &Path,
     estimators: Option<&[String]>,
-    models: &Models,
+    models: &ModelDir,
     options: Options<'_>,
 ) -> Result<()> {
     let Options {

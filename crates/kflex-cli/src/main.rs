@@ -4,7 +4,6 @@
 mod build_db;
 mod config;
 mod grid;
-mod models;
 mod output;
 mod paper;
 mod render;

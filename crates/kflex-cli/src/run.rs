@@ -98,7 +98,7 @@ pub struct RunArgs {
     quick: bool,
     /// With --scenario: the trained models' directory (kbjae.onnx, scnn.onnx,
     /// db/ from `kflex-cli build-db`), where the estimators load them from.
-    #[arg(long, value_name = "DIR", default_value = crate::models::DEFAULT_DIR, requires = "scenario")]
+    #[arg(long, value_name = "DIR", default_value = kflex_control::MODELS_DIR, requires = "scenario")]
     models: PathBuf,
     /// With --scenario and --out: write every run's MCAP log (joint states
     /// for Foxglove, the scenario and seed as metadata) to DIR/runs/, one
@@ -218,7 +218,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         return crate::grid::run(
             path,
             args.estimators.as_deref(),
-            &crate::models::Models::new(&args.models),
+            &kflex_control::ModelDir::new(&args.models),
             crate::grid::Options {
                 jobs: args.jobs.unwrap_or_else(|| {
                     std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)

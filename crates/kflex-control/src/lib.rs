@@ -49,6 +49,8 @@ mod grid;
 #[cfg(feature = "mcap")]
 mod mcap_log;
 mod metrics;
+#[cfg(feature = "estimators")]
+mod models;
 
 pub use closed_loop::{
     AngleEstimator, CameraFrame, CameraTiming, ClosedLoopScenario, ClosedLoopTrace, EstimatorTick,
@@ -72,3 +74,5 @@ pub use grid::{
 #[cfg(feature = "mcap")]
 pub use mcap_log::{JOINT_STATE_SCHEMA, JOINT_STATE_SCHEMA_NAME, JOINT_STATES_TOPIC, JointState};
 pub use metrics::{LOOP_BIN_DEG, MeanStd, error_peak_to_peak, loop_width, peak_loss, rmse};
+#[cfg(feature = "estimators")]
+pub use models::{MODELS_DIR, ModelDir};

@@ -41,6 +41,7 @@ mod closed_loop;
 mod compensator;
 mod dataset;
 mod error;
+mod experiment;
 mod fusion;
 mod kinematics;
 mod models;
@@ -113,6 +114,8 @@ fn _kflex(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<closed_loop::PyNoisyTruth>()?;
     m.add_class::<closed_loop::PyClosedLoopScenario>()?;
     m.add_class::<closed_loop::PyClosedLoopTrace>()?;
+    m.add_class::<experiment::PyExperimentGrid>()?;
+    m.add_function(wrap_pyfunction!(experiment::run_experiment, m)?)?;
     m.add_class::<models::PyKbjae>()?;
     m.add_class::<models::PyScnn>()?;
     m.add_class::<retrieval::PyNeighbour>()?;

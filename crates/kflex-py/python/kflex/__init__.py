@@ -24,6 +24,11 @@ The closed loop: ``ClosedLoopScenario().run(plant, estimator, seed)`` steps
 the compensator, the plant, the robot's camera and an estimator (a
 ``NoisyTruth`` stand-in, ``Kbjae`` or ``Lbhjae``) in Rust and returns a
 ``ClosedLoopTrace``; with ``mcap_path`` it also writes the run's MCAP log.
+
+The paper's experiments: ``run_experiment(ExperimentGrid.load("assets/scenarios/paper.toml"))``
+runs a grid of Tables V–X in Rust (the estimators' trained models from a
+``models`` directory) and returns its records and every run's time series
+as numpy arrays.
 """
 
 from kflex._kflex import (
@@ -41,6 +46,7 @@ from kflex._kflex import (
     CompensatorConfig,
     CompensatorOutput,
     Estimate,
+    ExperimentGrid,
     Fault,
     FeatureIndex,
     Frame,
@@ -89,6 +95,7 @@ from kflex._kflex import (
     WorkingBand,
     WorkingRegions,
     build_band_database,
+    run_experiment,
     segment,
 )
 from kflex._kflex import (
@@ -127,6 +134,7 @@ __all__ = [
     "CompensatorConfig",
     "CompensatorOutput",
     "Estimate",
+    "ExperimentGrid",
     "Fault",
     "FeatureIndex",
     "Frame",
@@ -175,5 +183,6 @@ __all__ = [
     "WorkingBand",
     "WorkingRegions",
     "build_band_database",
+    "run_experiment",
     "segment",
 ]

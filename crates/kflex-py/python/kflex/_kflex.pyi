@@ -591,6 +591,31 @@ class ClosedLoopTrace:
     def estimation_rmse_deg(self) -> float: ...
     def __len__(self) -> int: ...
 
+# ---- the paper's experiments: a grid of cases, run in Rust ----------------------------
+
+class ExperimentGrid(_Params):
+    cases: list[dict[str, Any]]
+    estimators: list[str]
+    repeats: int
+    seed: int
+    spread: float
+    backgrounds: list[str]
+    noise: dict[str, Any] | None
+    plant: dict[str, Any]
+    scenario: dict[str, Any]
+    @staticmethod
+    def paper() -> ExperimentGrid: ...
+    @staticmethod
+    def load(path: str | os.PathLike[str]) -> ExperimentGrid: ...
+    def quick(self) -> ExperimentGrid: ...
+
+def run_experiment(
+    grid: ExperimentGrid | str | os.PathLike[str],
+    models: str | os.PathLike[str] | None = None,
+    jobs: int | None = None,
+    time_series: bool = True,
+) -> dict[str, list[dict[str, Any]]]: ...
+
 # ---- estimators on ONNX models: KBJAE, the SCNN, the feature index, IBJAE, LBHJAE --
 
 PathIn: TypeAlias = str | os.PathLike[str]

@@ -1,11 +1,15 @@
-//! The trained models a grid's estimators load, from one directory:
-//! `kbjae.onnx` (KBJAE's MLP), `scnn.onnx` (IBJAE's Siamese CNN) and `db/`
-//! (IBJAE's feature databases, `kflex-cli build-db`). `assets/models/` is
-//! where kflex's own trained models will ship.
+//! The trained models a grid's estimators load (cargo feature
+//! `estimators`), from one directory: `kbjae.onnx` (KBJAE's MLP),
+//! `scnn.onnx` (IBJAE's Siamese CNN) and `db/` (IBJAE's feature databases,
+//! `kflex-cli build-db`). `assets/models/` is where kflex's own trained
+//! models will ship.
 
 use std::path::{Path, PathBuf};
 
-use kflex_control::{AngleEstimator, ControlError, EstimatorKind, IbjaeAlone};
+use crate::closed_loop::AngleEstimator;
+use crate::error::{ControlError, Result};
+use crate::estimators::IbjaeAlone;
+use crate::grid::EstimatorKind;
 use kflex_estimate::{
     AdaptiveKalman, AdaptiveParams, Ibjae, KalmanParams, Kbjae, Lbhjae, PaperKalman, Scnn,
     SegmentParams, load_databases,
@@ -13,16 +17,17 @@ use kflex_estimate::{
 use kflex_model::Camera;
 
 /// Where kflex's trained models ship, relative to the project's root.
-pub const DEFAULT_DIR: &str = "assets/models";
+pub const MODELS_DIR: &str = "assets/models";
 
 /// A directory of trained models.
-#[derive(Debug, Clone)]
-pub struct Models {
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ModelDir {
     dir: PathBuf,
 }
 
-impl Models {
+impl ModelDir {
     /// The models in `dir`.
+    #[must_use]
     pub fn new(dir: &Path) -> Self {
         Self {
             dir: dir.to_path_buf(),
@@ -30,21 +35,25 @@ impl Models {
     }
 
     /// KBJAE's model file.
+    #[must_use]
     pub fn kbjae(&self) -> PathBuf {
         self.dir.join("kbjae.onnx")
     }
 
     /// IBJAE's SCNN file.
+    #[must_use]
     pub fn scnn(&self) -> PathBuf {
         self.dir.join("scnn.onnx")
     }
 
     /// IBJAE's database directory.
+    #[must_use]
     pub fn databases(&self) -> PathBuf {
         self.dir.join("db")
     }
 
     /// The files `kind` needs that are not there.
+    #[must_use]
     pub fn missing(&self, kind: EstimatorKind) -> Vec<PathBuf> {
         let (kbjae, ibjae) = match kind {
             EstimatorKind::None => (false, false),
@@ -64,7 +73,7 @@ impl Models {
         files
     }
 
-    fn ibjae(&self, camera: &Camera) -> kflex_control::Result<Ibjae> {
+    fn ibjae(&self, camera: &Camera) -> Result<Ibjae> {
         let scnn = Scnn::load(&self.scnn(), 1)?;
         let bands = load_databases(&self.databases(), camera)?;
         Ok(Ibjae::new(scnn, SegmentParams::default(), bands)?)
@@ -77,11 +86,7 @@ impl Models {
     /// [`ControlError::Unavailable`] naming the files that are missing;
     /// a model's or database's own error (damaged, built with another
     /// model or camera, no ONNX Runtime).
-    pub fn make(
-        &self,
-        kind: EstimatorKind,
-        camera: &Camera,
-    ) -> kflex_control::Result<Box<dyn AngleEstimator>> {
+    pub fn make(&self, kind: EstimatorKind, camera: &Camera) -> Result<Box<dyn AngleEstimator>> {
         let missing = self.missing(kind);
         if !missing.is_empty() {
             let files: Vec<String> = missing.iter().map(|f| f.display().to_string()).collect();
@@ -97,14 +102,13 @@ impl Models {
                 ),
             });
         }
-        let fusion =
-            |adaptive: bool| -> kflex_control::Result<Box<dyn kflex_estimate::Fusion + Send>> {
-                Ok(if adaptive {
-                    Box::new(AdaptiveKalman::new(AdaptiveParams::default())?)
-                } else {
-                    Box::new(PaperKalman::new(KalmanParams::default())?)
-                })
-            };
+        let fusion = |adaptive: bool| -> Result<Box<dyn kflex_estimate::Fusion + Send>> {
+            Ok(if adaptive {
+                Box::new(AdaptiveKalman::new(AdaptiveParams::default())?)
+            } else {
+                Box::new(PaperKalman::new(KalmanParams::default())?)
+            })
+        };
         Ok(match kind {
             EstimatorKind::None => {
                 return Err(ControlError::Unavailable {

@@ -1,0 +1,253 @@
+//! The paper's experiments from Python (kflex-control's `ExperimentGrid`):
+//! a grid from a scenario file or built in Python, run in Rust on several
+//! threads without the interpreter lock, its records and every run's time
+//! series returned as numpy arrays.
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+use kflex_control::{CaseKind, EstimatorKind, ExperimentGrid, GridRun, ModelDir, Record};
+use kflex_model::Camera;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use crate::array;
+use crate::error::{Error, Result};
+use crate::value::serde_class;
+
+serde_class!(
+    /// A grid of the paper's experiments (kflex-control's `ExperimentGrid`):
+    /// `cases` (each a `dict` of `table`, `kind` "estimation" or
+    /// "compensation", `sheath_deg`, `occlusion` "0%", "20%", "40%" or
+    /// "40% distal"), `estimators` ("none", "kbjae", "ibjae", "lbhjae",
+    /// "lbhjae-adaptive"), `repeats`, `seed`, `spread`, `backgrounds`,
+    /// `noise`, `plant` and `scenario` (a `ClosedLoopScenario`'s fields).
+    /// Fields left out keep the paper's grid (`ExperimentGrid.paper()`).
+    PyExperimentGrid, "ExperimentGrid", ExperimentGrid, {
+        /// The paper's experiments: Tables V–VII (estimation) and VIII–X
+        /// (compensation), every estimator, three repeats.
+        #[staticmethod]
+        fn paper() -> Self {
+            ExperimentGrid::paper().into()
+        }
+
+        /// A scenario file (TOML, as those in `assets/scenarios/`). Raises
+        /// `OSError` when it cannot be read, `ValueError` naming the file,
+        /// the line and the field for one that is not a grid.
+        #[staticmethod]
+        fn load(path: PathBuf) -> Result<Self> {
+            let text = std::fs::read_to_string(&path).map_err(|e| {
+                Error::Py(pyo3::exceptions::PyOSError::new_err(format!(
+                    "{}: {e}",
+                    path.display()
+                )))
+            })?;
+            let grid: ExperimentGrid = toml::from_str(&text).map_err(|e| {
+                Error::Py(pyo3::exceptions::PyValueError::new_err(format!(
+                    "{}: {e}",
+                    path.display()
+                )))
+            })?;
+            Ok(grid.into())
+        }
+
+        /// A reduced grid for a fast look: each table's first and last
+        /// case, one repeat, at most one period of the input.
+        fn quick(&self) -> Self {
+            self.inner.quick().into()
+        }
+    }
+);
+
+/// One run's time series, kept for Python.
+struct RunSeries {
+    table: String,
+    kind: CaseKind,
+    sheath_deg: f64,
+    occlusion: &'static str,
+    seed: u64,
+    background: String,
+    estimators: Vec<EstimatorKind>,
+    time_s: Vec<f64>,
+    theta_d_deg: Vec<f64>,
+    theta_c_deg: Vec<f64>,
+    theta_a_deg: Vec<f64>,
+    theta_a_measured_deg: Vec<f64>,
+    estimates: Vec<Vec<f64>>,
+}
+
+impl RunSeries {
+    fn of(run: &GridRun<'_>) -> Self {
+        let t = &run.trace.trace;
+        Self {
+            table: run.case.table.clone(),
+            kind: run.case.kind,
+            sheath_deg: run.case.sheath_deg,
+            occlusion: run.case.occlusion.name(),
+            seed: run.seed,
+            background: format!("{:?}", run.background).to_lowercase(),
+            estimators: run.estimators.to_vec(),
+            time_s: t.time_s.clone(),
+            theta_d_deg: t.theta_d_deg.clone(),
+            theta_c_deg: run.trace.theta_c_deg.clone(),
+            theta_a_deg: t.theta_a_deg.clone(),
+            theta_a_measured_deg: t.theta_a_measured_deg.clone(),
+            estimates: run
+                .estimates
+                .iter()
+                .map(|e| e.iter().map(|h| h.unwrap_or(f64::NAN)).collect())
+                .collect(),
+        }
+    }
+}
+
+fn kind_name(kind: CaseKind) -> &'static str {
+    match kind {
+        CaseKind::Estimation => "estimation",
+        CaseKind::Compensation => "compensation",
+    }
+}
+
+fn record_dict<'py>(py: Python<'py>, r: &Record) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("kind", kind_name(r.case.kind))?;
+    d.set_item("table", &r.case.table)?;
+    d.set_item("estimator", r.estimator.name())?;
+    d.set_item("sheath_deg", r.case.sheath_deg)?;
+    d.set_item("occlusion", r.case.occlusion.name())?;
+    d.set_item("rmse_deg", r.rmse_deg.mean)?;
+    d.set_item("rmse_std_deg", r.rmse_deg.std)?;
+    let names = ["max_hysteresis", "error_peak_to_peak", "peak_loss"];
+    for (i, name) in names.iter().enumerate() {
+        let h = r.hysteresis.map(|h| h[i]);
+        d.set_item(format!("{name}_deg"), h.map(|m| m.mean))?;
+        d.set_item(format!("{name}_std_deg"), h.map(|m| m.std))?;
+    }
+    d.set_item("seeds", r.repeats.iter().map(|x| x.0).collect::<Vec<_>>())?;
+    d.set_item(
+        "backgrounds",
+        r.repeats
+            .iter()
+            .map(|x| format!("{:?}", x.1).to_lowercase())
+            .collect::<Vec<_>>(),
+    )?;
+    Ok(d)
+}
+
+fn run_dict(py: Python<'_>, run: RunSeries) -> PyResult<Bound<'_, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("kind", kind_name(run.kind))?;
+    d.set_item("table", run.table)?;
+    d.set_item("sheath_deg", run.sheath_deg)?;
+    d.set_item("occlusion", run.occlusion)?;
+    d.set_item("seed", run.seed)?;
+    d.set_item("background", run.background)?;
+    d.set_item(
+        "estimators",
+        run.estimators.iter().map(|e| e.name()).collect::<Vec<_>>(),
+    )?;
+    d.set_item("time_s", array::column(py, run.time_s))?;
+    d.set_item("theta_d_deg", array::column(py, run.theta_d_deg))?;
+    d.set_item("theta_c_deg", array::column(py, run.theta_c_deg))?;
+    d.set_item("theta_a_deg", array::column(py, run.theta_a_deg))?;
+    d.set_item(
+        "theta_a_measured_deg",
+        array::column(py, run.theta_a_measured_deg),
+    )?;
+    let estimates = PyDict::new(py);
+    for (e, series) in run.estimators.iter().zip(run.estimates) {
+        if *e != EstimatorKind::None {
+            estimates.set_item(e.name(), array::column(py, series))?;
+        }
+    }
+    d.set_item("estimates", estimates)?;
+    Ok(d)
+}
+
+/// Runs a grid of the paper's experiments (an `ExperimentGrid`, or the path
+/// of a scenario file) in Rust, on `jobs` threads (default one per core; the
+/// results are the same for any count), without the interpreter lock. The
+/// estimators load their trained models from `models` (a directory with
+/// `kbjae.onnx`, `scnn.onnx` and `db/`; default `assets/models`); "none"
+/// needs none.
+///
+/// Returns a `dict`: `records`, one `dict` per case and estimator over the
+/// repeats (as `kflex-cli run --scenario`'s `results.json`: `kind`,
+/// `table`, `estimator`, `sheath_deg`, `occlusion`, `rmse_deg`,
+/// `rmse_std_deg`, the three readings of the maximum hysteresis for
+/// compensation records, else None, `seeds`, `backgrounds`); and with
+/// `time_series`, `runs`, one `dict` per run (`kind`, `table`,
+/// `sheath_deg`, `occlusion`, `seed`, `background`, `estimators`, and
+/// float64 arrays `time_s`, `theta_d_deg`, `theta_c_deg`, `theta_a_deg`,
+/// `theta_a_measured_deg`, and `estimates`: estimator name to its
+/// estimate, NaN before it had one), in the order the runs ended.
+///
+/// Raises `ValueError` naming the file, line and field for a bad scenario
+/// file, `RangeError` for a setting out of range, `RuntimeError` naming the
+/// missing files when an estimator's models are not there (before any
+/// run), and the runs' own errors.
+#[pyfunction]
+#[pyo3(signature = (grid, models = None, jobs = None, time_series = true))]
+pub fn run_experiment<'py>(
+    py: Python<'py>,
+    grid: &Bound<'py, PyAny>,
+    models: Option<PathBuf>,
+    jobs: Option<usize>,
+    time_series: bool,
+) -> Result<Bound<'py, PyDict>> {
+    let grid: ExperimentGrid = if let Ok(g) = grid.extract::<PyExperimentGrid>() {
+        g.inner
+    } else if let Ok(path) = grid.extract::<PathBuf>() {
+        PyExperimentGrid::load(path)?.inner
+    } else {
+        return Err(Error::Py(pyo3::exceptions::PyTypeError::new_err(format!(
+            "grid must be an ExperimentGrid or the path of a scenario file, not {}",
+            grid.get_type().name().map_err(Error::Py)?
+        ))));
+    };
+    let models = ModelDir::new(&models.unwrap_or_else(|| PathBuf::from(kflex_control::MODELS_DIR)));
+    let jobs = jobs
+        .unwrap_or_else(|| {
+            std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+        })
+        .max(1);
+    let camera = Camera::default();
+    let runs: Mutex<Vec<RunSeries>> = Mutex::new(Vec::new());
+    let records = py.detach(|| {
+        let make = |kind| models.make(kind, &camera);
+        // every estimator made once first: a missing model fails now
+        for &kind in grid
+            .estimators
+            .iter()
+            .filter(|&&k| k != EstimatorKind::None)
+        {
+            make(kind)?;
+        }
+        let on_run = |run: &GridRun<'_>| {
+            if time_series && let Ok(mut r) = runs.lock() {
+                r.push(RunSeries::of(run));
+            }
+            Ok(())
+        };
+        grid.run_with(jobs, &make, &|_, _| {}, &on_run)
+    })?;
+    let out = PyDict::new(py);
+    let list = PyList::empty(py);
+    for r in &records {
+        list.append(record_dict(py, r).map_err(Error::Py)?)
+            .map_err(Error::Py)?;
+    }
+    out.set_item("records", list).map_err(Error::Py)?;
+    if time_series {
+        let list = PyList::empty(py);
+        let runs = runs
+            .into_inner()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        for run in runs {
+            list.append(run_dict(py, run).map_err(Error::Py)?)
+                .map_err(Error::Py)?;
+        }
+        out.set_item("runs", list).map_err(Error::Py)?;
+    }
+    Ok(out)
+}

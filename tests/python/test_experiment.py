@@ -1,0 +1,100 @@
+"""The paper's experiments from Python (``ExperimentGrid``,
+``run_experiment``): scenario files, the records against the returned time
+series, estimators from a models directory, and bad input."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import kflex
+import numpy as np
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+SCENARIOS = REPO_ROOT / "assets" / "scenarios"
+KBJAE_TEST_MODEL = REPO_ROOT / "crates" / "kflex-estimate" / "tests" / "data" / "kbjae_test.onnx"
+
+
+def small(estimators: list[str], kind: str = "compensation", table: str = "IX") -> kflex.ExperimentGrid:
+    """One case at 90 deg, two repeats of one period."""
+    grid = kflex.ExperimentGrid(
+        cases=[{"table": table, "kind": kind, "sheath_deg": 90.0, "occlusion": "0%"}],
+        estimators=estimators,
+        repeats=2,
+        seed=11,
+    )
+    scenario = grid.scenario
+    scenario["motion"]["periods"] = 1.0
+    grid.scenario = scenario
+    return grid
+
+
+def rmse(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((a - b) ** 2)))
+
+
+def test_the_scenario_files_are_the_papers_grid():
+    assert kflex.ExperimentGrid.load(SCENARIOS / "paper.toml") == kflex.ExperimentGrid.paper()
+    quick = kflex.ExperimentGrid.paper().quick()
+    assert len(quick.cases) == 12 and quick.repeats == 1
+    assert quick.scenario["motion"]["periods"] == 1.0
+
+
+def test_records_agree_with_the_time_series_they_come_from():
+    out = kflex.run_experiment(small(["none"]), jobs=1)
+    (record,) = out["records"]
+    assert (record["kind"], record["table"], record["estimator"]) == ("compensation", "IX", "none")
+    assert record["seeds"] == [11, 12]
+    assert record["max_hysteresis_deg"] > 0.0
+    runs = out["runs"]
+    assert sorted(r["seed"] for r in runs) == [11, 12]
+    per_run = []
+    for run in runs:
+        n = len(run["time_s"])
+        for key in ("theta_d_deg", "theta_c_deg", "theta_a_deg", "theta_a_measured_deg"):
+            assert run[key].dtype == np.float64 and run[key].shape == (n,)
+        # the uncompensated plant: the command is the master's, no estimate
+        np.testing.assert_array_equal(run["theta_c_deg"], run["theta_d_deg"])
+        assert run["estimates"] == {}
+        per_run.append(rmse(run["theta_a_measured_deg"], run["theta_d_deg"]))
+    assert record["rmse_deg"] == pytest.approx(np.mean(per_run), rel=1e-12)
+    assert record["rmse_std_deg"] == pytest.approx(np.std(per_run, ddof=1), rel=1e-9)
+    # the same on two threads
+    assert kflex.run_experiment(small(["none"]), jobs=2, time_series=False) == {"records": out["records"]}
+
+
+def test_estimators_load_from_a_models_directory(tmp_path):
+    shutil.copy(KBJAE_TEST_MODEL, tmp_path / "kbjae.onnx")
+    card = KBJAE_TEST_MODEL.with_name("kbjae_test.card.json")
+    shutil.copy(card, tmp_path / "kbjae.card.json")
+    out = kflex.run_experiment(small(["kbjae"], kind="estimation", table="VI"), models=tmp_path, jobs=1)
+    (record,) = out["records"]
+    assert record["kind"] == "estimation" and record["max_hysteresis_deg"] is None
+    per_run = []
+    for run in out["runs"]:
+        est = run["estimates"]["kbjae"]
+        assert est.shape == run["theta_a_deg"].shape
+        ok = ~np.isnan(est)
+        per_run.append(rmse(est[ok], run["theta_a_deg"][ok]))
+    assert record["rmse_deg"] == pytest.approx(np.mean(per_run), rel=1e-12)
+
+
+def test_bad_input_is_a_clear_error(tmp_path):
+    with pytest.raises(RuntimeError, match="kbjae.onnx"):
+        kflex.run_experiment(small(["kbjae"]), models=tmp_path)
+    bad = tmp_path / "bad.toml"
+    bad.write_text("repeats = 2\nrepaets = 3\n")
+    with pytest.raises(ValueError, match=r"(?s)bad\.toml.*unknown field `repaets`") as e:
+        kflex.run_experiment(bad)
+    assert "line 2" in str(e.value)
+    with pytest.raises(OSError):
+        kflex.ExperimentGrid.load(tmp_path / "missing.toml")
+    with pytest.raises(TypeError, match="ExperimentGrid"):
+        kflex.run_experiment(42)
+    with pytest.raises(ValueError):
+        kflex.ExperimentGrid(estimators=["kalman"])
+    grid = small(["none"])
+    grid.repeats = 0
+    with pytest.raises(kflex.RangeError, match="repeats"):
+        kflex.run_experiment(grid)
