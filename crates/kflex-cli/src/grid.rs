@@ -174,6 +174,50 @@ pub struct Options<'a> {
     pub out: Option<&'a PathBuf>,
     /// Every run's MCAP log to `out/runs/`.
     pub mcap: bool,
+    /// What the command line narrows or replaces.
+    pub only: Only,
+}
+
+/// The flags that narrow a scenario's cases or replace its settings.
+#[derive(Debug, Default)]
+pub struct Only {
+    /// Keep the cases at these bends, deg.
+    pub sheath_deg: Option<Vec<f64>>,
+    /// Keep the cases with these occlusions (their names).
+    pub occlusion: Option<Vec<String>>,
+    /// Replace the base seed.
+    pub seed: Option<u64>,
+    /// Replace the repeats.
+    pub repeats: Option<u32>,
+}
+
+impl Only {
+    /// Narrows and replaces `grid`'s; an occlusion name that is none of the
+    /// grid's is an error naming the valid ones.
+    fn apply(&self, grid: &mut ExperimentGrid) -> Result<()> {
+        if let Some(names) = &self.occlusion {
+            let valid = ["0%", "20%", "40%", "40% distal"];
+            if let Some(bad) = names.iter().find(|n| !valid.contains(&n.as_str())) {
+                bail!("--occlusion {bad:?}: one of {}", valid.join(", "));
+            }
+            grid.cases
+                .retain(|c| names.iter().any(|n| n == c.occlusion.name()));
+        }
+        if let Some(bends) = &self.sheath_deg {
+            grid.cases
+                .retain(|c| bends.iter().any(|b| (b - c.sheath_deg).abs() < 1e-9));
+        }
+        if let Some(seed) = self.seed {
+            grid.seed = seed;
+        }
+        if let Some(repeats) = self.repeats {
+            grid.repeats = repeats;
+        }
+        if grid.cases.is_empty() {
+            bail!("no case of the scenario is left by --sheath and --occlusion");
+        }
+        Ok(())
+    }
 }
 
 /// Runs the scenario: `estimators` replace the file's when given; the
@@ -189,9 +233,11 @@ pub fn run(
         quick,
         out,
         mcap,
+        only,
     } = options;
     let jobs = jobs.max(1);
     let mut grid = load(path)?;
+    only.apply(&mut grid)?;
     if quick {
         grid = grid.quick();
     }

@@ -81,7 +81,7 @@ pub struct RunArgs {
     #[arg(
         long,
         value_name = "FILE",
-        conflicts_with_all = ["estimator", "sheath", "periods", "repeats", "seed", "dt", "spread", "no_noise", "joint", "config"]
+        conflicts_with_all = ["estimator", "periods", "dt", "spread", "no_noise", "joint", "config"]
     )]
     scenario: Option<PathBuf>,
     /// With --scenario: the estimators to run, comma separated (none, kbjae,
@@ -96,6 +96,12 @@ pub struct RunArgs {
     /// and last case, one repeat, one period of the input.
     #[arg(long, requires = "scenario")]
     quick: bool,
+    /// With --scenario: only the cases with these occlusions, comma
+    /// separated (0%, 20%, 40%, 40% distal). --sheath given with --scenario
+    /// likewise keeps the cases at those bends, and --seed and --repeats
+    /// replace the file's.
+    #[arg(long, value_delimiter = ',', requires = "scenario")]
+    occlusion: Option<Vec<String>>,
     /// With --scenario: the trained models' directory (kbjae.onnx, scnn.onnx,
     /// db/ from `kflex-cli build-db`), where the estimators load them from.
     #[arg(long, value_name = "DIR", default_value = kflex_control::MODELS_DIR, requires = "scenario")]
@@ -112,7 +118,7 @@ pub struct RunArgs {
 
 impl RunArgs {
     /// The flags that replace a [`PlantConfig`] field: their ids.
-    const OVERRIDING: [&'static str; 4] = ["sheath", "joint", "seed", "no_noise"];
+    const OVERRIDING: [&'static str; 5] = ["sheath", "joint", "seed", "no_noise", "repeats"];
 
     /// Records which of the overriding flags `matches` (this subcommand's) got
     /// from the command line, for the run's notes.
@@ -213,6 +219,11 @@ struct Record {
     peak_loss_definition: &'static str,
 }
 
+/// Whether the flag `id` was given on the command line.
+fn self_given(args: &RunArgs, id: &str) -> bool {
+    args.given.contains(&id)
+}
+
 pub fn run(args: &RunArgs) -> Result<()> {
     if let Some(path) = &args.scenario {
         return crate::grid::run(
@@ -226,6 +237,12 @@ pub fn run(args: &RunArgs) -> Result<()> {
                 quick: args.quick,
                 out: args.out.as_ref(),
                 mcap: args.mcap,
+                only: crate::grid::Only {
+                    sheath_deg: self_given(args, "sheath").then(|| args.sheath.clone()),
+                    occlusion: args.occlusion.clone(),
+                    seed: self_given(args, "seed").then_some(args.seed),
+                    repeats: self_given(args, "repeats").then_some(args.repeats),
+                },
             },
         );
     }

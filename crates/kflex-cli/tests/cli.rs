@@ -689,7 +689,15 @@ fn a_scenario_naming_what_cannot_run_is_refused_before_any_run() {
         "unknown estimator \"kalman\"",
     );
     // the flags of the Table IX run do not mix with a scenario
-    assert_refused(&["run", "--scenario", path, "--sheath", "90"], "--sheath");
+    assert_refused(&["run", "--scenario", path, "--periods", "2"], "--periods");
+    assert_refused(
+        &["run", "--scenario", path, "--occlusion", "30%"],
+        "--occlusion \"30%\"",
+    );
+    assert_refused(
+        &["run", "--scenario", path, "--sheath", "45"],
+        "no case of the scenario is left",
+    );
     assert_refused(&["run", "--jobs", "2"], "--scenario");
     assert_refused(&["run", "--scenario", path, "--mcap"], "--out");
     assert_refused(
@@ -964,4 +972,39 @@ periods = 1.0
         ],
         "nothing to run",
     );
+}
+
+#[test]
+fn sheath_occlusion_seed_and_repeats_narrow_a_scenario() {
+    let dir = scratch("narrow");
+    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenarios/paper.toml");
+    run_scenario(
+        scenario.to_str().unwrap(),
+        &[
+            "--estimators",
+            "none",
+            "--sheath",
+            "270",
+            "--occlusion",
+            "0%,40%",
+            "--seed",
+            "5",
+            "--repeats",
+            "1",
+            "--quick",
+        ],
+        dir.to_str().unwrap(),
+    );
+    let text = std::fs::read_to_string(dir.join("results.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let cases: Vec<String> = json["records"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            assert_eq!(r["seeds"], serde_json::json!([5]));
+            format!("{} {} {}", r["table"], r["sheath_deg"], r["occlusion"]).replace('"', "")
+        })
+        .collect();
+    assert_eq!(cases, ["IX 270.0 0%", "X 270.0 40%"]);
 }
