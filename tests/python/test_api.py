@@ -311,28 +311,28 @@ def test_working_regions_and_camera():
 # ---- the interpreter lock ----------------------------------------------------
 
 
-def _longest_pause_while(call) -> tuple[float, float]:
-    """Runs ``call`` in a thread; returns (its duration, the longest gap
-    between this thread's loop iterations meanwhile)."""
+def _progress_while(call) -> tuple[float, float]:
+    """Runs ``call`` in a thread; returns (its duration, the share of its
+    10 ms windows in which this thread's loop ran at least once)."""
     done = threading.Event()
     spans = {}
 
     def work():
         t0 = time.perf_counter()
+        spans["start"] = t0
         call()
-        spans["call"] = time.perf_counter() - t0
+        spans["end"] = time.perf_counter()
         done.set()
 
+    windows = set()
     thread = threading.Thread(target=work)
-    last = time.perf_counter()
-    longest = 0.0
     thread.start()
     while not done.is_set():
-        now = time.perf_counter()
-        longest = max(longest, now - last)
-        last = now
+        windows.add(int(time.perf_counter() * 100.0))
     thread.join()
-    return spans["call"], longest
+    first, last = int(spans["start"] * 100.0), int(spans["end"] * 100.0)
+    inside = [w for w in range(first, last + 1) if w in windows]
+    return spans["end"] - spans["start"], len(inside) / (last - first + 1)
 
 
 def test_long_calls_release_the_interpreter(scene):
@@ -345,8 +345,12 @@ def test_long_calls_release_the_interpreter(scene):
         lambda: kflex.Plant().run(theta, 10.0, 0.01),
         lambda: [renderer.render(camera, shape, kflex.FrameParams(frame=i, blur_px=2.0)) for i in range(2)],
     ):
-        duration, pause = _longest_pause_while(call)
+        duration, share = _progress_while(call)
         assert duration > 0.05, "the call is too short to tell"
-        # holding the lock, the call would stop this thread for its whole length
-        assert pause < 0.5 * duration, (duration, pause)
+        # holding the lock, the call would stop this thread for its whole
+        # length (a share near 0); released, this thread runs through most
+        # of it. Counted over 10 ms windows rather than as the longest
+        # pause, which a busy two-core machine stretches now and then
+        # (measured once: one 0.21 s pause in a 0.40 s call).
+        assert share > 0.5, (duration, share)
     del frame
