@@ -9,7 +9,7 @@ import kflex
 import kflex.npz
 import numpy as np
 import pytest
-from test_api import _longest_pause_while
+from test_api import _progress_while
 
 
 @pytest.fixture(scope="module")
@@ -129,9 +129,10 @@ def test_pairs_errors():
 
 def test_generation_releases_the_interpreter():
     config = kflex.ImagePairsConfig(pairs=40, block=4)
-    duration, pause = _longest_pause_while(lambda: config.generate(threads=1))
+    duration, share = _progress_while(lambda: config.generate(threads=1))
     assert duration > 0.05, "the call is too short to tell"
-    assert pause < 0.5 * duration, (duration, pause)
+    # released, this thread runs through most of the call (see test_api)
+    assert share > 0.5, (duration, share)
 
 
 # ---- files -----------------------------------------------------------------
