@@ -160,17 +160,15 @@ pub(super) fn keep_components(s: &mut Scratch, min: f32, share_of_largest: f32) 
                 }
             }
         }
-        spans.push((first, component.len()));
         let pixels: f32 = component[first..].iter().map(|&r| regions[r].count).sum();
+        spans.push((first, component.len(), pixels));
         sizes_largest = sizes_largest.max(pixels);
     }
     let least = min.max(share_of_largest * sizes_largest);
     let mut kept = 0usize;
-    for &(first, end) in spans.iter() {
-        let members = &component[first..end];
-        let pixels: f32 = members.iter().map(|&r| regions[r].count).sum();
+    for &(first, end, pixels) in spans.iter() {
         if pixels < least {
-            for &r in members {
+            for &r in &component[first..end] {
                 instrument[r] = 0;
             }
         } else {

@@ -302,8 +302,8 @@ struct Scratch {
     adjacency_start: Vec<u32>,
     /// Per region: whether it has a cell on the region of interest's edge.
     on_border: Vec<bool>,
-    /// Per instrument component: its regions' range in `component`.
-    component_spans: Vec<(usize, usize)>,
+    /// Per instrument component: its regions' range in `component`, and its pixels.
+    component_spans: Vec<(usize, usize, f32)>,
     cells: Vec<u8>,
     seen: Vec<bool>,
     flood: Vec<usize>,
