@@ -12,39 +12,6 @@ pub struct Figure {
     pub std: f64,
 }
 
-/// Table IX, uncompensated ("none") row: RMSE and maximum hysteresis size at `sheath_deg`,
-/// or `None` where the paper has no measurement at that bend.
-pub fn table9_none(sheath_deg: f64) -> Result<Option<(Figure, Figure)>> {
-    let root: toml::Table = TABLES
-        .parse()
-        .context("parsing the embedded paper tables")?;
-    let t9 = root
-        .get("table9_compensation_sheath")
-        .and_then(|v| v.as_table())
-        .ok_or_else(|| anyhow!("paper tables lack table9_compensation_sheath"))?;
-    let sheaths =
-        numbers(t9.get("sheath_deg")).ok_or_else(|| anyhow!("table 9 lacks sheath_deg"))?;
-    let Some(i) = sheaths.iter().position(|s| (s - sheath_deg).abs() < 1e-9) else {
-        return Ok(None);
-    };
-    let pair = |key: &str| -> Result<Figure> {
-        let rows = t9
-            .get(key)
-            .and_then(|v| v.as_array())
-            .ok_or_else(|| anyhow!("table 9 lacks {key}"))?;
-        let row =
-            numbers(rows.get(i)).ok_or_else(|| anyhow!("table 9 {key}[{i}] is not [mean, std]"))?;
-        match row.as_slice() {
-            [mean, std] => Ok(Figure {
-                mean: *mean,
-                std: *std,
-            }),
-            _ => Err(anyhow!("table 9 {key}[{i}] is not [mean, std]")),
-        }
-    };
-    Ok(Some((pair("rmse_none")?, pair("max_hysteresis_none")?)))
-}
-
 /// The paper's figures for a case of its Tables V–X and an estimator (by
 /// their names in scenario files: `"IX"`, `"kbjae"`, occlusion `"40% distal"`):
 /// the RMSE and, for the compensation tables, the maximum hysteresis, each
@@ -132,10 +99,11 @@ mod tests {
 
     #[test]
     fn reads_table_ix_none_row() {
-        let (rmse, width) = table9_none(270.0).unwrap().unwrap();
+        let (rmse, width) = figure("IX", "none", 270.0, "0%").unwrap();
+        let (rmse, width) = (rmse.unwrap(), width.unwrap());
         assert_eq!((rmse.mean, rmse.std), (21.9, 1.2));
         assert_eq!((width.mean, width.std), (18.4, 1.5));
-        assert!(table9_none(45.0).unwrap().is_none());
+        assert_eq!(figure("IX", "none", 45.0, "0%").unwrap(), (None, None));
     }
 
     #[test]

@@ -327,7 +327,7 @@ fn explain(args: &RunArgs, err: ControlError) -> anyhow::Error {
 }
 
 fn record(args: &RunArgs, row: &GridRow) -> Result<Record> {
-    let paper = paper::table9_none(row.sheath_deg)?;
+    let (paper_rmse, paper_width) = paper::figure("IX", "none", row.sheath_deg, "0%")?;
     Ok(Record {
         estimator: args.estimator,
         sheath_deg: row.sheath_deg,
@@ -340,10 +340,10 @@ fn record(args: &RunArgs, row: &GridRow) -> Result<Record> {
         error_peak_to_peak_std_deg: row.error_peak_to_peak_deg.std,
         peak_loss_deg: row.peak_loss_deg.mean,
         peak_loss_std_deg: row.peak_loss_deg.std,
-        paper_rmse_deg: paper.map(|p| p.0.mean),
-        paper_rmse_std_deg: paper.map(|p| p.0.std),
-        paper_max_hysteresis_deg: paper.map(|p| p.1.mean),
-        paper_max_hysteresis_std_deg: paper.map(|p| p.1.std),
+        paper_rmse_deg: paper_rmse.map(|p| p.mean),
+        paper_rmse_std_deg: paper_rmse.map(|p| p.std),
+        paper_max_hysteresis_deg: paper_width.map(|p| p.mean),
+        paper_max_hysteresis_std_deg: paper_width.map(|p| p.std),
         repeats: args.repeats,
         seeds: row.seeds.clone(),
         periods: args.periods,
