@@ -6,7 +6,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use kflex_control::{CaseKind, EstimatorKind, ExperimentGrid, GridRun, MeanStd, Record};
+use kflex_control::{
+    CaseKind, EstimatorKind, ExperimentGrid, GridRun, MeanStd, OcclusionCase, Record,
+};
 use kflex_model::Camera;
 use serde::Serialize;
 
@@ -16,22 +18,13 @@ use crate::output::{
 use crate::paper::{self, Figure};
 use kflex_control::ModelDir;
 
-/// Every estimator a scenario may name.
-const KINDS: [EstimatorKind; 5] = [
-    EstimatorKind::None,
-    EstimatorKind::Kbjae,
-    EstimatorKind::Ibjae,
-    EstimatorKind::Lbhjae,
-    EstimatorKind::LbhjaeAdaptive,
-];
-
 /// An estimator by its name in scenario files.
 pub fn estimator(name: &str) -> Result<EstimatorKind> {
-    KINDS
+    EstimatorKind::ALL
         .into_iter()
         .find(|k| k.name() == name)
         .with_context(|| {
-            let names: Vec<&str> = KINDS.iter().map(|k| k.name()).collect();
+            let names: Vec<&str> = EstimatorKind::ALL.iter().map(|k| k.name()).collect();
             format!("unknown estimator {name:?}: one of {}", names.join(", "))
         })
 }
@@ -92,10 +85,7 @@ impl Row {
         };
         let h = |i: usize, f: fn(&MeanStd) -> f64| record.hysteresis.as_ref().map(|h| f(&h[i]));
         Ok(Row {
-            kind: match case.kind {
-                CaseKind::Estimation => "estimation",
-                CaseKind::Compensation => "compensation",
-            },
+            kind: case.kind.name(),
             table: case.table.clone(),
             estimator: record.estimator.name(),
             sheath_deg: case.sheath_deg,
@@ -196,7 +186,7 @@ impl Only {
     /// grid's is an error naming the valid ones.
     fn apply(&self, grid: &mut ExperimentGrid) -> Result<()> {
         if let Some(names) = &self.occlusion {
-            let valid = ["0%", "20%", "40%", "40% distal"];
+            let valid = OcclusionCase::ALL.map(OcclusionCase::name);
             if let Some(bad) = names.iter().find(|n| !valid.contains(&n.as_str())) {
                 bail!("--occlusion {bad:?}: one of {}", valid.join(", "));
             }
@@ -247,17 +237,10 @@ pub fn run(
     // the runs render through the nominal camera (the databases' own)
     let camera = Camera::default();
     let make = |kind| models.make(kind, &camera);
-    // every estimator made once before any run: a missing or damaged model
-    // fails now, not after the first cases
-    for &kind in grid
-        .estimators
-        .iter()
-        .filter(|&&k| k != EstimatorKind::None)
-    {
-        if let Err(e) = make(kind) {
-            return Err(anyhow::Error::new(e));
-        }
-    }
+    models.check(&grid.estimators, &camera).context(
+        "give the directory that holds the trained models with --models, or run with \
+         --estimators none",
+    )?;
     let total_cases = grid.cases.len();
     println!(
         "kflex run — scenario {}{} ({total_cases} case{}, estimators {}, {} repeat{}, seeds {}.., {} period{} of the input, {jobs} thread{})",
@@ -299,17 +282,6 @@ pub fn run(
         Some(dir) => write_logs(dir, run),
         None => Ok(()),
     };
-    let runnable = grid.cases.iter().any(|c| match c.kind {
-        CaseKind::Estimation => grid.estimators.iter().any(|&e| e != EstimatorKind::None),
-        CaseKind::Compensation => !grid.estimators.is_empty(),
-    });
-    if !runnable {
-        bail!(
-            "nothing to run in {}: its cases are estimation cases and its only estimator is \
-             none (the uncompensated plant runs in compensation cases only)",
-            path.display()
-        );
-    }
     let records = grid
         .run_with(jobs, &make, &progress, &on_run)
         .with_context(|| format!("running the scenario {}", path.display()))?;

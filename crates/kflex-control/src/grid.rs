@@ -15,7 +15,9 @@
 use kflex_model::{AuroraNoise, Background, Bounds, Occlusion, Plant, PlantConfig};
 use serde::{Deserialize, Serialize};
 
-use crate::closed_loop::{AngleEstimator, ClosedLoopScenario, ClosedLoopTrace};
+use crate::closed_loop::{
+    AngleEstimator, ClosedLoopScenario, ClosedLoopTrace, estimation_rmse_deg,
+};
 use crate::error::{ControlError, Result};
 use crate::experiment::RunMetrics;
 use crate::metrics::MeanStd;
@@ -38,6 +40,14 @@ pub enum OcclusionCase {
 }
 
 impl OcclusionCase {
+    /// Every case, in the paper's order.
+    pub const ALL: [OcclusionCase; 4] = [
+        OcclusionCase::None,
+        OcclusionCase::Middle20,
+        OcclusionCase::Middle40,
+        OcclusionCase::Distal40,
+    ];
+
     /// The tape it puts on the frames (its share measured in the working
     /// region of the frame's translation, see [`Occlusion`]).
     #[must_use]
@@ -72,6 +82,17 @@ pub enum CaseKind {
     Compensation,
 }
 
+impl CaseKind {
+    /// Its name in scenario files and results.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Estimation => "estimation",
+            Self::Compensation => "compensation",
+        }
+    }
+}
+
 /// The estimators of the paper's tables.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -89,6 +110,15 @@ pub enum EstimatorKind {
 }
 
 impl EstimatorKind {
+    /// Every estimator, in the paper's order (kflex's own last).
+    pub const ALL: [EstimatorKind; 5] = [
+        EstimatorKind::None,
+        EstimatorKind::Kbjae,
+        EstimatorKind::Ibjae,
+        EstimatorKind::Lbhjae,
+        EstimatorKind::LbhjaeAdaptive,
+    ];
+
     /// Its name in scenario files and on the command line.
     #[must_use]
     pub fn name(self) -> &'static str {
@@ -250,7 +280,8 @@ impl ExperimentGrid {
     /// [`ControlError::OutOfRange`] naming `repeats` (`[1, 1000]`), `spread`
     /// (`[0, 0.5]`) or a case's `sheath_deg` (`[0, 3600]`);
     /// [`ControlError::NotEnoughData`] for no cases, estimators or
-    /// backgrounds; as [`ClosedLoopScenario::validate`].
+    /// backgrounds, or nothing to run (estimation cases with `none` alone);
+    /// as [`ClosedLoopScenario::validate`].
     pub fn validate(&self) -> Result<()> {
         Bounds::closed(1.0, 1000.0).check("repeats", f64::from(self.repeats))?;
         Bounds::closed(0.0, 0.5).check("spread", self.spread)?;
@@ -269,6 +300,20 @@ impl ExperimentGrid {
         }
         for c in &self.cases {
             Bounds::closed(0.0, 3600.0).check("sheath_deg", c.sheath_deg)?;
+        }
+        // "none" runs in compensation cases only
+        let runnable = self.cases.iter().any(|c| {
+            c.kind == CaseKind::Compensation
+                || self.estimators.iter().any(|&e| e != EstimatorKind::None)
+        });
+        if !runnable {
+            return Err(ControlError::NotEnoughData {
+                metric: "experiment grid",
+                needed: "a run (nothing to run: its cases are estimation cases and its only \
+                         estimator is none, the uncompensated plant, which runs in \
+                         compensation cases only)",
+                got: 0,
+            });
         }
         self.scenario.validate()
     }
@@ -334,8 +379,8 @@ impl ExperimentGrid {
             })?;
             match case.kind {
                 CaseKind::Estimation => {
-                    for (i, out) in rmse.iter_mut().enumerate() {
-                        out.push(all.estimation_rmse_deg(i, &trace)?);
+                    for (out, estimate) in rmse.iter_mut().zip(&estimates) {
+                        out.push(estimation_rmse_deg(&trace.trace.theta_a_deg, estimate)?);
                     }
                 }
                 CaseKind::Compensation => {
@@ -523,12 +568,6 @@ impl Fanout {
     fn new(members: Vec<Box<dyn AngleEstimator>>) -> Self {
         let hats = vec![Vec::new(); members.len()];
         Self { members, hats }
-    }
-
-    /// Member `i`'s estimation RMSE over the evaluated ticks of `trace`
-    /// (the last ones it stepped), as [`ClosedLoopTrace::estimation_rmse_deg`].
-    fn estimation_rmse_deg(&self, i: usize, trace: &ClosedLoopTrace) -> Result<f64> {
-        crate::closed_loop::estimation_rmse_deg(&trace.trace.theta_a_deg, &self.hats[i])
     }
 }
 

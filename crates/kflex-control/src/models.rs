@@ -79,6 +79,19 @@ impl ModelDir {
         Ok(Ibjae::new(scnn, SegmentParams::default(), bands)?)
     }
 
+    /// Makes each of `kinds` once (not `None`, which needs no model), so
+    /// that a missing or damaged model fails before a grid's first run
+    /// rather than after its first cases.
+    ///
+    /// # Errors
+    /// As [`ModelDir::make`], for the first kind that fails.
+    pub fn check(&self, kinds: &[EstimatorKind], camera: &Camera) -> Result<()> {
+        for &kind in kinds.iter().filter(|&&k| k != EstimatorKind::None) {
+            self.make(kind, camera)?;
+        }
+        Ok(())
+    }
+
     /// A fresh estimator of `kind` on these models, for a run through the
     /// nominal `camera` (the one the databases were rendered through).
     ///
@@ -94,8 +107,7 @@ impl ModelDir {
                 what: format!(
                     "the estimator {} needs {}, which {} not there: kflex ships no trained \
                      models yet (training/README.md trains them, `kflex-cli build-db` builds \
-                     the databases); give the directory that holds them with --models, or \
-                     run with --estimators none",
+                     the databases)",
                     kind.name(),
                     files.join(" and "),
                     if files.len() == 1 { "is" } else { "are" }

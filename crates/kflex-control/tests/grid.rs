@@ -396,3 +396,35 @@ fn an_estimator_named_twice_runs_once() {
     assert_eq!(run(&twice), run(&once));
     assert_eq!(run(&once).len(), 3);
 }
+
+#[test]
+fn estimation_cases_with_only_the_uncompensated_plant_are_nothing_to_run() {
+    let grid = ExperimentGrid {
+        estimators: vec![EstimatorKind::None],
+        ..ExperimentGrid::paper_table("V")
+    };
+    let make = |_: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
+        unreachable!("nothing is made before the grid is checked")
+    };
+    let err = grid.run(1, &make, &|_, _| {}).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            ControlError::NotEnoughData {
+                metric: "experiment grid",
+                ..
+            }
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().contains("nothing to run"), "{err}");
+    // a compensation case gives "none" a run
+    assert!(
+        ExperimentGrid {
+            estimators: vec![EstimatorKind::None],
+            ..ExperimentGrid::paper_table("IX")
+        }
+        .validate()
+        .is_ok()
+    );
+}

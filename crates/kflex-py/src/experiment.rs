@@ -101,16 +101,9 @@ impl RunSeries {
     }
 }
 
-fn kind_name(kind: CaseKind) -> &'static str {
-    match kind {
-        CaseKind::Estimation => "estimation",
-        CaseKind::Compensation => "compensation",
-    }
-}
-
 fn record_dict<'py>(py: Python<'py>, r: &Record) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    d.set_item("kind", kind_name(r.case.kind))?;
+    d.set_item("kind", r.case.kind.name())?;
     d.set_item("table", &r.case.table)?;
     d.set_item("estimator", r.estimator.name())?;
     d.set_item("sheath_deg", r.case.sheath_deg)?;
@@ -136,7 +129,7 @@ fn record_dict<'py>(py: Python<'py>, r: &Record) -> PyResult<Bound<'py, PyDict>>
 
 fn run_dict(py: Python<'_>, run: RunSeries) -> PyResult<Bound<'_, PyDict>> {
     let d = PyDict::new(py);
-    d.set_item("kind", kind_name(run.kind))?;
+    d.set_item("kind", run.kind.name())?;
     d.set_item("table", run.table)?;
     d.set_item("sheath_deg", run.sheath_deg)?;
     d.set_item("occlusion", run.occlusion)?;
@@ -215,14 +208,7 @@ pub fn run_experiment<'py>(
     let runs: Mutex<Vec<RunSeries>> = Mutex::new(Vec::new());
     let records = py.detach(|| {
         let make = |kind| models.make(kind, &camera);
-        // every estimator made once first: a missing model fails now
-        for &kind in grid
-            .estimators
-            .iter()
-            .filter(|&&k| k != EstimatorKind::None)
-        {
-            make(kind)?;
-        }
+        models.check(&grid.estimators, &camera)?;
         let on_run = |run: &GridRun<'_>| {
             if time_series && let Ok(mut r) = runs.lock() {
                 r.push(RunSeries::of(run));
