@@ -11,12 +11,26 @@ STAMP := $(VENV)/.installed
 CARGO ?= cargo
 RUN_ARGS ?=
 
-.PHONY: run test venv build test-rust test-embedded py-module test-python training-venv test-training smoke train lint fmt bench index-bench fit loops gallery clean
+.PHONY: run test venv fonts build test-rust test-embedded py-module test-python training-venv test-training smoke train lint fmt bench index-bench fit loops gallery clean
 
-run: venv build
+run: venv fonts build
 	./target/release/kflex-cli run $(RUN_ARGS)
 
-test: venv test-rust test-embedded test-python test-training
+test: venv fonts test-rust test-embedded test-python test-training
+
+# The figures' text (kflex-cli run --out) needs a TrueType font: Debian's
+# fonts-dejavu-core, installed here where it is missing and we may (root with
+# apt-get); KFLEX_FONT=FILE names another. Without one the runs warn and
+# write no figures, and the figure tests fail.
+DEJAVU := /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf
+fonts:
+	@if [ -z "$${KFLEX_FONT:-}" ] && [ ! -f $(DEJAVU) ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    apt-get install -y -q fonts-dejavu-core >/dev/null 2>&1 || { apt-get update -q >/dev/null && apt-get install -y -q fonts-dejavu-core; }; \
+	  else \
+	    echo "note: no font for the figures: apt-get install fonts-dejavu-core, or set KFLEX_FONT=FILE"; \
+	  fi; \
+	fi
 
 venv: $(STAMP)
 

@@ -7,11 +7,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use kflex_control::{
-    CaseKind, EstimatorKind, ExperimentGrid, GridRun, MeanStd, OcclusionCase, Record,
+    Case, CaseKind, EstimatorKind, ExperimentGrid, GridRun, MeanStd, OcclusionCase, Record,
 };
 use kflex_model::Camera;
 use serde::Serialize;
 
+use crate::figures::Collector;
 use crate::output::{
     PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, paper_pm, pm, write_atomic,
 };
@@ -41,30 +42,30 @@ pub fn load(path: &Path) -> Result<ExperimentGrid> {
 /// later versions extend, never rename.
 #[derive(Debug, Serialize)]
 pub struct Row {
-    kind: &'static str,
-    table: String,
-    estimator: &'static str,
-    sheath_deg: f64,
-    occlusion: &'static str,
+    pub(crate) kind: &'static str,
+    pub(crate) table: String,
+    pub(crate) estimator: &'static str,
+    pub(crate) sheath_deg: f64,
+    pub(crate) occlusion: &'static str,
     /// Estimation: the estimate against the true angle; compensation: the
     /// measured angle against θ_d.
-    rmse_deg: f64,
-    rmse_std_deg: f64,
-    max_hysteresis_deg: Option<f64>,
-    max_hysteresis_std_deg: Option<f64>,
-    error_peak_to_peak_deg: Option<f64>,
-    error_peak_to_peak_std_deg: Option<f64>,
-    peak_loss_deg: Option<f64>,
-    peak_loss_std_deg: Option<f64>,
-    paper_rmse_deg: Option<f64>,
-    paper_rmse_std_deg: Option<f64>,
-    paper_max_hysteresis_deg: Option<f64>,
-    paper_max_hysteresis_std_deg: Option<f64>,
-    repeats: usize,
-    seeds: Vec<u64>,
-    backgrounds: Vec<String>,
-    periods: f64,
-    dt_s: f64,
+    pub(crate) rmse_deg: f64,
+    pub(crate) rmse_std_deg: f64,
+    pub(crate) max_hysteresis_deg: Option<f64>,
+    pub(crate) max_hysteresis_std_deg: Option<f64>,
+    pub(crate) error_peak_to_peak_deg: Option<f64>,
+    pub(crate) error_peak_to_peak_std_deg: Option<f64>,
+    pub(crate) peak_loss_deg: Option<f64>,
+    pub(crate) peak_loss_std_deg: Option<f64>,
+    pub(crate) paper_rmse_deg: Option<f64>,
+    pub(crate) paper_rmse_std_deg: Option<f64>,
+    pub(crate) paper_max_hysteresis_deg: Option<f64>,
+    pub(crate) paper_max_hysteresis_std_deg: Option<f64>,
+    pub(crate) repeats: usize,
+    pub(crate) seeds: Vec<u64>,
+    pub(crate) backgrounds: Vec<String>,
+    pub(crate) periods: f64,
+    pub(crate) dt_s: f64,
 }
 
 impl Row {
@@ -120,19 +121,35 @@ impl Row {
     }
 }
 
+/// A case in file names: `V_0deg_40pct-distal` (the table's name made safe).
+pub(crate) fn case_stem(case: &Case) -> String {
+    let occlusion = case.occlusion.name().replace('%', "pct").replace(' ', "-");
+    format!(
+        "{}_{}deg_{occlusion}",
+        safe_name(&case.table),
+        case.sheath_deg
+    )
+}
+
+/// `name` with every character but ASCII letters, digits, `-` and `.` made `_`.
+pub(crate) fn safe_name(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '.' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
 /// The MCAP log of one estimator's view of a run, under `dir`:
 /// `V_0deg_40pct-distal_kbjae_seed2020.mcap`.
 fn log_path(dir: &Path, run: &GridRun<'_>, estimator: EstimatorKind) -> PathBuf {
-    let occlusion = run
-        .case
-        .occlusion
-        .name()
-        .replace('%', "pct")
-        .replace(' ', "-");
     dir.join(format!(
-        "{}_{}deg_{occlusion}_{}_seed{}.mcap",
-        run.case.table,
-        run.case.sheath_deg,
+        "{}_{}_seed{}.mcap",
+        case_stem(run.case),
         estimator.name(),
         run.seed
     ))
@@ -164,6 +181,8 @@ pub struct Options<'a> {
     pub out: Option<&'a PathBuf>,
     /// Every run's MCAP log to `out/runs/`.
     pub mcap: bool,
+    /// The figures to `out/plots/` (where a font is found).
+    pub plots: bool,
     /// What the command line narrows or replaces.
     pub only: Only,
 }
@@ -223,6 +242,7 @@ pub fn run(
         quick,
         out,
         mcap,
+        plots,
         only,
     } = options;
     let jobs = jobs.max(1);
@@ -278,9 +298,25 @@ pub fn run(
         }
         _ => None,
     };
-    let on_run = |run: &GridRun<'_>| match &logs {
-        Some(dir) => write_logs(dir, run),
-        None => Ok(()),
+    // the figures need a font for their text: without one, say so up front
+    let figures = match (plots, out) {
+        (true, Some(_)) => match crate::plots::init_font() {
+            Ok(_) => Some(Collector::new(&grid)),
+            Err(why) => {
+                eprintln!("kflex-cli: warning: no figures: {why}");
+                None
+            }
+        },
+        _ => None,
+    };
+    let on_run = |run: &GridRun<'_>| {
+        if let Some(f) = &figures {
+            f.take(run);
+        }
+        match &logs {
+            Some(dir) => write_logs(dir, run),
+            None => Ok(()),
+        }
     };
     let records = grid
         .run_with(jobs, &make, &progress, &on_run)
@@ -307,6 +343,15 @@ pub fn run(
         println!("\nwrote {}", path.display());
         let path = write_atomic(dir, "results.csv", &csv(&rows))?;
         println!("wrote {}", path.display());
+        if let Some(figures) = figures {
+            let plots = dir.join("plots");
+            let written = figures.write(&plots, &rows)?;
+            println!(
+                "wrote {} figures (PNG and SVG) to {}",
+                written.len() / 2,
+                plots.display()
+            );
+        }
     }
     Ok(())
 }

@@ -3,9 +3,11 @@
 
 mod build_db;
 mod config;
+mod figures;
 mod grid;
 mod output;
 mod paper;
+mod plots;
 mod render;
 mod run;
 

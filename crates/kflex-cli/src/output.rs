@@ -32,15 +32,21 @@ pub(crate) fn paper_pm(mean: Option<f64>, std: Option<f64>) -> String {
 /// rename, so a reader never sees half a file and an old file survives a
 /// failed write. A newline ends the file.
 pub(crate) fn write_atomic(dir: &Path, name: &str, contents: &str) -> Result<PathBuf> {
+    if contents.ends_with('\n') {
+        write_atomic_bytes(dir, name, contents.as_bytes())
+    } else {
+        write_atomic_bytes(dir, name, format!("{contents}\n").as_bytes())
+    }
+}
+
+/// Writes the bytes `contents` to `dir/name` atomically, as [`write_atomic`].
+pub(crate) fn write_atomic_bytes(dir: &Path, name: &str, contents: &[u8]) -> Result<PathBuf> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let path = dir.join(name);
     let tmp = dir.join(format!(".{name}.tmp"));
     let write = || -> std::io::Result<()> {
         let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(contents.as_bytes())?;
-        if !contents.ends_with('\n') {
-            f.write_all(b"\n")?;
-        }
+        f.write_all(contents)?;
         f.sync_all()?;
         std::fs::rename(&tmp, &path)
     };

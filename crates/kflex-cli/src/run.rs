@@ -111,6 +111,11 @@ pub struct RunArgs {
     /// per estimator of the run (about 0.8 MB per run of five periods).
     #[arg(long, requires_all = ["scenario", "out"])]
     mcap: bool,
+    /// With --scenario and --out: write no figures (by default DIR/plots/
+    /// gets each case's time series and loops and each table's summary, as
+    /// PNG and SVG).
+    #[arg(long, requires_all = ["scenario", "out"])]
+    no_plots: bool,
     /// The flags above given on the command line (not defaulted), by id.
     #[arg(skip)]
     given: Vec<&'static str>,
@@ -237,6 +242,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
                 quick: args.quick,
                 out: args.out.as_ref(),
                 mcap: args.mcap,
+                plots: !args.no_plots,
                 only: crate::grid::Only {
                     sheath_deg: self_given(args, "sheath").then(|| args.sheath.clone()),
                     occlusion: args.occlusion.clone(),

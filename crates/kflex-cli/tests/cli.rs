@@ -1008,3 +1008,120 @@ fn sheath_occlusion_seed_and_repeats_narrow_a_scenario() {
         .collect();
     assert_eq!(cases, ["IX 270.0 0%", "X 270.0 40%"]);
 }
+
+/// The heights of a summary SVG's filled bars (`<rect … height=…>` at full
+/// or pale opacity in `fill`), in drawing order.
+fn bar_heights(svg: &str, fill: &str) -> Vec<(f64, bool)> {
+    svg.split("<rect ")
+        .skip(1)
+        .filter(|r| r.contains(&format!("fill=\"{fill}\"")))
+        .map(|r| {
+            let attr = |name: &str| -> f64 {
+                let start = r.find(&format!(" {name}=\"")).unwrap() + name.len() + 3;
+                r[start..].split('"').next().unwrap().parse().unwrap()
+            };
+            (attr("height"), attr("opacity") < 1.0)
+        })
+        // the legend's swatches are 12 px high
+        .filter(|(h, _)| *h != 12.0)
+        .collect()
+}
+
+#[test]
+fn a_scenario_draws_each_case_and_table_as_png_and_svg() {
+    let dir = scratch("plots");
+    let file = scenario_file(&dir);
+    let out_dir = dir.join("out");
+    let out = run_scenario(file.to_str().unwrap(), &[], out_dir.to_str().unwrap());
+    assert!(
+        stdout_of(&out).contains("wrote 8 figures"),
+        "{}",
+        stdout_of(&out)
+    );
+    let plots = out_dir.join("plots");
+    let mut names: Vec<String> = std::fs::read_dir(&plots)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    let mut expected: Vec<String> = [
+        "IX_90deg_0pct_loops",
+        "IX_90deg_0pct_series",
+        "VIII_0deg_40pct_loops",
+        "VIII_0deg_40pct_series",
+        "table_IX_rmse",
+        "table_IX_width",
+        "table_VIII_rmse",
+        "table_VIII_width",
+    ]
+    .iter()
+    .flat_map(|s| [format!("{s}.png"), format!("{s}.svg")])
+    .collect();
+    expected.sort();
+    assert_eq!(names, expected, "no temporary file is left either");
+    // a time series: the command in black and the uncompensated joint in
+    // the "none" grey, on a white page
+    let png = image::open(plots.join("IX_90deg_0pct_series.png"))
+        .unwrap()
+        .to_rgb8();
+    assert_eq!(png.dimensions(), (960, 600));
+    let count = |rgb: [u8; 3]| png.pixels().filter(|p| p.0 == rgb).count();
+    assert!(count([255, 255, 255]) > 960 * 600 / 2);
+    assert!(count([0, 0, 0]) > 1000, "the command's line");
+    assert!(count([120, 120, 120]) > 1000, "the joint's line");
+    let svg = std::fs::read_to_string(plots.join("IX_90deg_0pct_series.svg")).unwrap();
+    assert!(svg.contains("θ_a with none") && svg.contains("Table IX — sheath 90°"));
+    // the width summary: our bar and the paper's, their heights in the
+    // ratio of the figures in results.json (to a pixel)
+    let text = std::fs::read_to_string(out_dir.join("results.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let record = &json["records"][0];
+    let (ours, paper) = (
+        record["max_hysteresis_deg"].as_f64().unwrap(),
+        record["paper_max_hysteresis_deg"].as_f64().unwrap(),
+    );
+    let svg = std::fs::read_to_string(plots.join("table_IX_width.svg")).unwrap();
+    let bars = bar_heights(&svg, "#787878");
+    assert_eq!(bars.len(), 2, "{bars:?}");
+    assert!(!bars[0].1 && bars[1].1, "ours solid, then the paper's pale");
+    let drawn = bars[0].0 / bars[1].0;
+    assert!(
+        (drawn - ours / paper).abs() < 1.5 / bars[1].0.min(bars[0].0) * drawn,
+        "bars {bars:?} against {ours} and {paper}"
+    );
+}
+
+#[test]
+fn figures_are_skipped_on_request_or_without_a_font_and_the_results_stay() {
+    let dir = scratch("no-plots");
+    let file = scenario_file(&dir);
+    let out_dir = dir.join("off");
+    run_scenario(
+        file.to_str().unwrap(),
+        &["--no-plots"],
+        out_dir.to_str().unwrap(),
+    );
+    assert!(out_dir.join("results.json").exists());
+    assert!(!out_dir.join("plots").exists());
+    // a font that is not there: a warning saying what to do, and the results
+    let out_dir = dir.join("nofont");
+    let out = Command::new(env!("CARGO_BIN_EXE_kflex-cli"))
+        .args(["run", "--scenario", file.to_str().unwrap(), "--out"])
+        .arg(&out_dir)
+        .env("KFLEX_FONT", dir.join("missing.ttf"))
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("warning: no figures") && stderr.contains("KFLEX_FONT"),
+        "{stderr}"
+    );
+    assert!(out_dir.join("results.json").exists());
+    assert!(!out_dir.join("plots").exists());
+    // --no-plots means nothing without --out
+    assert_refused(
+        &["run", "--scenario", file.to_str().unwrap(), "--no-plots"],
+        "--out",
+    );
+}
