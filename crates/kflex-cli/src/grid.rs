@@ -283,12 +283,19 @@ pub fn run(
         },
         if jobs == 1 { "" } else { "s" },
     );
+    // a bar on a terminal, nothing where stderr is a file or a pipe
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "  [{elapsed_precise}] {bar:32} {pos}/{len} runs, about {eta} left",
+        )
+        .context("the progress bar's template")?,
+    );
     let progress = |done: usize, total: usize| {
-        eprint!("\r  {done}/{total} runs of the grid done");
-        if done == total {
-            eprintln!();
-        }
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
     };
+    crate::interrupt::install()?;
     let logs = match (mcap, out) {
         (true, Some(dir)) => {
             let logs = dir.join("runs");
@@ -310,6 +317,10 @@ pub fn run(
         _ => None,
     };
     let on_run = |run: &GridRun<'_>| {
+        // Ctrl-C: the run that just ended is dropped with the rest
+        if crate::interrupt::requested() {
+            return Err(kflex_control::ControlError::Interrupted);
+        }
         if let Some(f) = &figures {
             f.take(run);
         }
@@ -318,9 +329,9 @@ pub fn run(
             None => Ok(()),
         }
     };
-    let records = grid
-        .run_with(jobs, &make, &progress, &on_run)
-        .with_context(|| format!("running the scenario {}", path.display()))?;
+    let records = grid.run_with(jobs, &make, &progress, &on_run);
+    bar.finish_and_clear();
+    let records = records.with_context(|| format!("running the scenario {}", path.display()))?;
     if let Some(dir) = &logs {
         println!("wrote the runs' MCAP logs to {}", dir.display());
     }

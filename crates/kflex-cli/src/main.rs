@@ -5,6 +5,7 @@ mod build_db;
 mod config;
 mod figures;
 mod grid;
+mod interrupt;
 mod output;
 mod paper;
 mod plots;
@@ -51,6 +52,19 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
+            let interrupted = err.chain().any(|e| {
+                matches!(
+                    e.downcast_ref::<kflex_control::ControlError>(),
+                    Some(kflex_control::ControlError::Interrupted)
+                )
+            });
+            if interrupted {
+                eprintln!(
+                    "kflex-cli: interrupted: stopped after the runs in progress; no results \
+                     written (the MCAP logs written so far are whole)"
+                );
+                return ExitCode::from(130);
+            }
             eprintln!("kflex-cli: error: {err:#}");
             ExitCode::FAILURE
         }

@@ -1125,3 +1125,83 @@ fn figures_are_skipped_on_request_or_without_a_font_and_the_results_stay() {
         "--out",
     );
 }
+
+#[test]
+fn ctrl_c_stops_a_grid_cleanly_leaving_whole_logs_and_no_results() {
+    let dir = scratch("interrupt");
+    let models = test_models(&dir);
+    let file = dir.join("long.toml");
+    // IBJAE renders a frame every 33 ms of the loop: about 0.3 s a run, 10 s in all
+    std::fs::write(
+        &file,
+        r#"
+estimators = ["ibjae"]
+repeats = 30
+[[cases]]
+table = "IX"
+kind = "compensation"
+sheath_deg = 0.0
+occlusion = "0%"
+[scenario.motion]
+periods = 1.0
+"#,
+    )
+    .unwrap();
+    let out_dir = dir.join("out");
+    let runs = out_dir.join("runs");
+    let child = Command::new(env!("CARGO_BIN_EXE_kflex-cli"))
+        .args(["run", "--scenario", file.to_str().unwrap()])
+        .args([
+            "--models",
+            models.to_str().unwrap(),
+            "--jobs",
+            "1",
+            "--mcap",
+        ])
+        .arg("--out")
+        .arg(&out_dir)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let logs = |ext: &str| -> Vec<PathBuf> {
+        std::fs::read_dir(&runs)
+            .map(|d| {
+                d.map(|e| e.unwrap().path())
+                    .filter(|p| p.to_string_lossy().ends_with(ext))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let start = std::time::Instant::now();
+    while logs(".mcap").is_empty() {
+        assert!(start.elapsed().as_secs() < 60, "no log after a minute");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let interrupted_at = std::time::Instant::now();
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    let stopped_after = interrupted_at.elapsed();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    // the run in progress finishes, nothing after it starts
+    assert!(stopped_after.as_secs_f64() < 5.0, "{stopped_after:?}");
+    let written = logs(".mcap");
+    assert!(!written.is_empty() && written.len() < 30, "{written:?}");
+    assert!(logs(".tmp").is_empty());
+    for log in &written {
+        let bytes = std::fs::read(log).unwrap();
+        let messages = mcap::MessageStream::new(&bytes)
+            .unwrap()
+            .map(|m| m.map(|_| ()))
+            .collect::<Result<Vec<()>, _>>();
+        assert_eq!(messages.map(|m| m.len()).ok(), Some(629), "{log:?}");
+    }
+    assert!(!out_dir.join("results.json").exists());
+    assert!(!out_dir.join("results.csv").exists());
+}

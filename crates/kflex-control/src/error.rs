@@ -28,6 +28,10 @@ pub enum ControlError {
         /// What is missing, and what to do.
         what: String,
     },
+    /// The user asked the run to stop (e.g. Ctrl-C, seen by a grid's
+    /// `on_run`): nothing after the runs in progress was started.
+    #[error("interrupted")]
+    Interrupted,
     /// A log file could not be written.
     #[error("{path}: {message}")]
     Log {

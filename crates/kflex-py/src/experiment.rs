@@ -5,8 +5,11 @@
 
 use std::path::PathBuf;
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 
-use kflex_control::{CaseKind, EstimatorKind, ExperimentGrid, GridRun, ModelDir, Record};
+use kflex_control::{
+    CaseKind, ControlError, EstimatorKind, ExperimentGrid, GridRun, ModelDir, Record,
+};
 use kflex_model::Camera;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -178,7 +181,8 @@ fn run_dict(py: Python<'_>, run: RunSeries) -> PyResult<Bound<'_, PyDict>> {
 /// Raises `ValueError` naming the file, line and field for a bad scenario
 /// file, `RangeError` for a setting out of range, `RuntimeError` naming the
 /// missing files when an estimator's models are not there (before any
-/// run), and the runs' own errors.
+/// run), and the runs' own errors. Ctrl-C stops it: the runs in progress
+/// finish, no further run starts, and `KeyboardInterrupt` is raised.
 #[pyfunction]
 #[pyo3(signature = (grid, models = None, jobs = None, time_series = true))]
 pub fn run_experiment<'py>(
@@ -206,17 +210,45 @@ pub fn run_experiment<'py>(
         .max(1);
     let camera = Camera::default();
     let runs: Mutex<Vec<RunSeries>> = Mutex::new(Vec::new());
+    // Ctrl-C: Python sees its signals on the main thread only, so the grid
+    // runs on another while this one looks for them; the runs in progress
+    // finish, no further run starts, and the KeyboardInterrupt is raised
+    let stop = AtomicBool::new(false);
+    let mut signal: Option<PyErr> = None;
     let records = py.detach(|| {
         let make = |kind| models.make(kind, &camera);
         models.check(&grid.estimators, &camera)?;
         let on_run = |run: &GridRun<'_>| {
+            if stop.load(Ordering::Relaxed) {
+                return Err(ControlError::Interrupted);
+            }
             if time_series && let Ok(mut r) = runs.lock() {
                 r.push(RunSeries::of(run));
             }
             Ok(())
         };
-        grid.run_with(jobs, &make, &|_, _| {}, &on_run)
-    })?;
+        std::thread::scope(|scope| {
+            let grid_run = scope.spawn(|| grid.run_with(jobs, &make, &|_, _| {}, &on_run));
+            while !grid_run.is_finished() {
+                std::thread::sleep(std::time::Duration::from_millis(20));
+                if signal.is_none()
+                    && let Err(e) = Python::attach(|py| py.check_signals())
+                {
+                    signal = Some(e);
+                    stop.store(true, Ordering::Relaxed);
+                }
+            }
+            grid_run.join().unwrap_or_else(|_| {
+                Err(ControlError::Worker {
+                    message: "the experiment's thread panicked".into(),
+                })
+            })
+        })
+    });
+    if let Some(e) = signal {
+        return Err(Error::Py(e));
+    }
+    let records = records?;
     let out = PyDict::new(py);
     let list = PyList::empty(py);
     for r in &records {
