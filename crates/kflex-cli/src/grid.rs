@@ -14,7 +14,8 @@ use serde::Serialize;
 
 use crate::figures::Collector;
 use crate::output::{
-    PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, paper_pm, pm, write_atomic,
+    PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, check_writable, paper_pm, pm,
+    write_atomic,
 };
 use crate::paper::{self, Figure};
 use kflex_control::ModelDir;
@@ -246,6 +247,9 @@ pub fn run(
         only,
     } = options;
     let jobs = jobs.max(1);
+    if let Some(dir) = out {
+        check_writable(dir)?;
+    }
     let mut grid = load(path)?;
     only.apply(&mut grid)?;
     if quick {

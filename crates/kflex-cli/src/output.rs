@@ -28,6 +28,21 @@ pub(crate) fn paper_pm(mean: Option<f64>, std: Option<f64>) -> String {
     }
 }
 
+/// Makes sure the results can be written to `dir` before any work: creates
+/// it, then a file in it, which it removes.
+pub(crate) fn check_writable(dir: &Path) -> Result<()> {
+    let fail = |e: std::io::Error| {
+        anyhow::Error::new(e).context(format!(
+            "the output directory {} cannot be written (checked before running)",
+            dir.display()
+        ))
+    };
+    std::fs::create_dir_all(dir).map_err(fail)?;
+    let probe = dir.join(format!(".kflex-write-check-{}", std::process::id()));
+    std::fs::File::create(&probe).map_err(fail)?;
+    std::fs::remove_file(&probe).map_err(fail)
+}
+
 /// Writes `dir/name` atomically: a temporary file in the same folder, then a
 /// rename, so a reader never sees half a file and an old file survives a
 /// failed write. A newline ends the file.

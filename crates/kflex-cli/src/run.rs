@@ -10,7 +10,8 @@ use kflex_model::{AuroraNoise, JointModelKind, PlantConfig};
 use serde::Serialize;
 
 use crate::output::{
-    PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, paper_pm, pm, write_atomic,
+    PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, check_writable, paper_pm, pm,
+    write_atomic,
 };
 use crate::{config, paper};
 
@@ -254,6 +255,9 @@ pub fn run(args: &RunArgs) -> Result<()> {
     }
     if args.sheath.is_empty() {
         bail!("--sheath needs at least one angle");
+    }
+    if let Some(dir) = &args.out {
+        check_writable(dir)?;
     }
     let (mut plant, notes) = match &args.config {
         Some(path) => {
