@@ -161,13 +161,9 @@ fn log_path(dir: &Path, run: &GridRun<'_>, estimator: EstimatorKind) -> PathBuf 
 fn write_logs(dir: &Path, run: &GridRun<'_>) -> kflex_control::Result<()> {
     for (i, &estimator) in run.estimators.iter().enumerate() {
         let path = log_path(dir, run, estimator);
-        if i == 0 {
-            run.trace.write_mcap(&path, run.scenario, run.seed)?;
-        } else {
-            let mut trace = run.trace.clone();
-            trace.theta_hat_deg = run.estimates[i].to_vec();
-            trace.write_mcap(&path, run.scenario, run.seed)?;
-        }
+        let estimate = run.estimates.get(i).copied().unwrap_or(&[]);
+        run.trace
+            .write_mcap_with_estimate(&path, run.scenario, run.seed, estimate)?;
     }
     Ok(())
 }
@@ -182,6 +178,8 @@ pub struct Options<'a> {
     pub out: Option<&'a PathBuf>,
     /// Every run's MCAP log to `out/runs/`.
     pub mcap: bool,
+    /// The logs hold the rendered frames too.
+    pub mcap_frames: bool,
     /// The figures to `out/plots/` (where a font is found).
     pub plots: bool,
     /// What the command line narrows or replaces.
@@ -243,10 +241,12 @@ pub fn run(
         quick,
         out,
         mcap,
+        mcap_frames,
         plots,
         only,
     } = options;
     let jobs = jobs.max(1);
+    let logs_wanted = mcap && out.is_some();
     if let Some(dir) = out {
         check_writable(dir)?;
     }
@@ -258,6 +258,8 @@ pub fn run(
     if let Some(names) = estimators {
         grid.estimators = names.iter().map(|n| estimator(n)).collect::<Result<_>>()?;
     }
+    // frames are kept only for the logs
+    grid.scenario.record_frames = logs_wanted && (mcap_frames || grid.scenario.record_frames);
     // the runs render through the nominal camera (the databases' own)
     let camera = Camera::default();
     let make = |kind| models.make(kind, &camera);

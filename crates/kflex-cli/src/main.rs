@@ -10,6 +10,7 @@ mod output;
 mod paper;
 mod plots;
 mod render;
+mod replay;
 mod run;
 
 use std::process::ExitCode;
@@ -31,6 +32,9 @@ enum Command {
     Run(run::RunArgs),
     /// Render one endoscope frame, its 48×48 silhouette, segmentation and masks as PNG.
     Render(render::RenderArgs),
+    /// Run estimators again over a recorded run's MCAP log (its commands
+    /// and camera frames) and print their RMSE against its true angle.
+    Replay(replay::ReplayArgs),
     /// Build IBJAE's feature databases over the default camera's working
     /// regions with a trained SCNN.
     BuildDb(build_db::BuildDbArgs),
@@ -48,6 +52,7 @@ fn main() -> ExitCode {
         }
         Command::Render(args) => render::render(&args),
         Command::BuildDb(args) => build_db::build_db(&args),
+        Command::Replay(args) => replay::replay(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -112,6 +112,12 @@ pub struct RunArgs {
     /// per estimator of the run (about 0.8 MB per run of five periods).
     #[arg(long, requires_all = ["scenario", "out"])]
     mcap: bool,
+    /// With --mcap: the logs also hold every frame the camera rendered for
+    /// the estimators (the image, its 48×48 segmentation and where the
+    /// window lies), for Foxglove and `kflex-cli replay`: about 50 MB per
+    /// period of the input and log (estimators without frames log none).
+    #[arg(long, requires = "mcap")]
+    mcap_frames: bool,
     /// With --scenario and --out: write no figures (by default DIR/plots/
     /// gets each case's time series and loops and each table's summary, as
     /// PNG and SVG).
@@ -243,6 +249,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
                 quick: args.quick,
                 out: args.out.as_ref(),
                 mcap: args.mcap,
+                mcap_frames: args.mcap_frames,
                 plots: !args.no_plots,
                 only: crate::grid::Only {
                     sheath_deg: self_given(args, "sheath").then(|| args.sheath.clone()),

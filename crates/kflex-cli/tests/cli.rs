@@ -1239,3 +1239,123 @@ fn an_unwritable_output_directory_fails_before_any_run() {
         "not a directory"
     );
 }
+
+/// A table row of `kflex-cli replay`: the RMSE printed for `name`.
+fn replayed_rmse(stdout: &str, name: &str) -> f64 {
+    stdout
+        .lines()
+        .find_map(|l| {
+            let (label, rest) = l.split_once('|')?;
+            (label.trim() == name).then(|| rest.split_whitespace().next()?.parse().ok())?
+        })
+        .unwrap_or_else(|| panic!("no row {name} in\n{stdout}"))
+}
+
+#[test]
+fn replay_runs_the_estimators_again_over_a_logged_runs_frames() {
+    let dir = scratch("replay");
+    let models = test_models(&dir);
+    let file = dir.join("est.toml");
+    std::fs::write(
+        &file,
+        r#"
+estimators = ["kbjae", "ibjae", "lbhjae"]
+repeats = 1
+[[cases]]
+table = "V"
+kind = "estimation"
+sheath_deg = 0.0
+occlusion = "0%"
+[scenario.motion]
+periods = 1.0
+"#,
+    )
+    .unwrap();
+    let out_dir = dir.join("out");
+    let models = models.to_str().unwrap();
+    run_scenario(
+        file.to_str().unwrap(),
+        &["--models", models, "--mcap", "--mcap-frames", "--no-plots"],
+        out_dir.to_str().unwrap(),
+    );
+    let text = std::fs::read_to_string(out_dir.join("results.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let recorded = |name: &str| {
+        json["records"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["estimator"] == name)
+            .unwrap()["rmse_deg"]
+            .as_f64()
+            .unwrap()
+    };
+    let log = out_dir.join("runs/V_0deg_0pct_ibjae_seed2020.mcap");
+    let out = kflex(&[
+        "replay",
+        log.to_str().unwrap(),
+        "--models",
+        models,
+        "--estimators",
+        "kbjae,ibjae,lbhjae",
+    ]);
+    let stdout = stdout_of(&out);
+    // a period (6.29 s) of 10 ms ticks, at 30 frames/s
+    assert!(
+        stdout.contains("(629 ticks of 0.01 s, 188 frames, seed 2020)"),
+        "{stdout}"
+    );
+    // KBJAE reads commands only, and the pre-roll is replayed as it ran
+    assert!(
+        (replayed_rmse(&stdout, "kbjae") - recorded("kbjae")).abs() < 1e-3,
+        "{stdout}"
+    );
+    // the frame-based ones differ only before the first logged frame (the
+    // log holds the evaluated part's frames, not the pre-roll's)
+    for name in ["ibjae", "lbhjae"] {
+        let (r, t) = (replayed_rmse(&stdout, name), recorded(name));
+        assert!(
+            (r / t - 1.0).abs() < 0.02,
+            "{name}: {r} against {t}\n{stdout}"
+        );
+    }
+    // the log's own estimate is IBJAE's
+    assert!((replayed_rmse(&stdout, "as logged") - recorded("ibjae")).abs() < 1e-3);
+    // a log without frames replays, saying camera-based estimators see none
+    std::fs::create_dir_all(dir.join("plain")).unwrap();
+    run_scenario(
+        file.to_str().unwrap(),
+        &[
+            "--models",
+            models,
+            "--mcap",
+            "--no-plots",
+            "--estimators",
+            "kbjae",
+        ],
+        dir.join("plain").to_str().unwrap(),
+    );
+    let plain = dir.join("plain/runs/V_0deg_0pct_kbjae_seed2020.mcap");
+    let out = kflex(&["replay", plain.to_str().unwrap(), "--models", models]);
+    let stdout = stdout_of(&out);
+    assert!(stdout.contains("no camera frames"), "{stdout}");
+    assert!((replayed_rmse(&stdout, "kbjae") - recorded("kbjae")).abs() < 1e-3);
+    // bad input: a missing log, a file that is not one, "none"
+    let missing = dir.join("missing.mcap");
+    assert_refused(
+        &["replay", missing.to_str().unwrap(), "--models", models],
+        "missing.mcap",
+    );
+    let junk = dir.join("junk.mcap");
+    std::fs::write(&junk, b"not a log").unwrap();
+    assert_refused(
+        &["replay", junk.to_str().unwrap(), "--models", models],
+        "junk.mcap",
+    );
+    assert_refused(
+        &["replay", log.to_str().unwrap(), "--estimators", "none"],
+        "estimates nothing",
+    );
+    // the frames take some 50 MB a log
+    std::fs::remove_dir_all(&dir).unwrap();
+}

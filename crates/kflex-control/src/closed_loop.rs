@@ -213,6 +213,13 @@ pub struct ClosedLoopScenario {
     /// The compensator between θ_d and the plant; `None`: θ_c = θ_d (an
     /// estimation run, as the paper's estimation experiments).
     pub compensator: Option<CompensatorConfig>,
+    /// Keep every rendered frame of the evaluated part in the trace
+    /// ([`ClosedLoopTrace::camera_frames`], and so in its MCAP log): some
+    /// 200 KB a frame of IBJAE's window, 190 MB a run of five periods at 30
+    /// frames/s (its log about 250 MB: the images are base64 in JSON, as
+    /// Foxglove reads them). Off by default.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub record_frames: bool,
 }
 
 impl Default for ClosedLoopScenario {
@@ -223,6 +230,7 @@ impl Default for ClosedLoopScenario {
             frames: FrameParams::default(),
             tolerances: BuildTolerances::default(),
             compensator: Some(CompensatorConfig::default()),
+            record_frames: false,
         }
     }
 }
@@ -254,6 +262,28 @@ pub struct ClosedLoopTrace {
     pub fault_ticks: usize,
     /// The camera's frames.
     pub frames: FrameCounts,
+    /// With [`ClosedLoopScenario::record_frames`]: every frame rendered in
+    /// the evaluated part, in capture order (dropped frames are never
+    /// rendered). Not serialised with the trace; its MCAP log holds them.
+    #[serde(skip)]
+    pub camera_frames: Vec<RecordedFrame>,
+}
+
+/// A rendered frame of a run, as its MCAP log records it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordedFrame {
+    /// Capture time, s since the start of evaluation.
+    pub captured_s: f64,
+    /// When it reaches the estimator, s since the start of evaluation.
+    pub arrives_s: f64,
+    /// Where its pixels lie in the camera's full image.
+    pub window: Roi,
+    /// The window's pixels, RGB, row-major, `3 × width × height` bytes.
+    pub rgb: Vec<u8>,
+    /// The command the plant had answered at capture.
+    pub command: Command,
+    /// The plant's true angle at capture, deg (ground truth).
+    pub truth_theta_a_deg: f64,
 }
 
 impl ClosedLoopTrace {
@@ -379,6 +409,24 @@ impl RobotCamera {
         Ok(())
     }
 
+    /// The frame [`RobotCamera::capture`] has just put in flight, if it
+    /// rendered one, as a recording with its times shifted by `-offset_s`.
+    fn record_last(&self, since: usize, offset_s: f64) -> Option<RecordedFrame> {
+        if self.in_flight.len() <= since {
+            return None;
+        }
+        let f = self.in_flight.back()?;
+        let (image, window) = (f.image.as_ref()?, f.window?);
+        Some(RecordedFrame {
+            captured_s: f.captured_s - offset_s,
+            arrives_s: f.arrives_s - offset_s,
+            window,
+            rgb: image.rgb.clone(),
+            command: f.command,
+            truth_theta_a_deg: f.truth_theta_a_deg,
+        })
+    }
+
     /// The newest frame that has arrived by `time_s`; older arrivals are stale.
     fn arrived(&mut self, time_s: f64) -> Option<InFlight> {
         let mut newest = None;
@@ -474,7 +522,14 @@ impl ClosedLoopScenario {
                 translation_mm: motion.translation_mm,
             };
             let state = plant.step(command, dt)?;
+            let in_flight = camera.in_flight.len();
             camera.capture(&self.camera, time_s, command, state.theta_a_deg, estimator)?;
+            if self.record_frames
+                && evaluated.is_some()
+                && let Some(f) = camera.record_last(in_flight, pre_roll.len() as f64 * dt)
+            {
+                out.camera_frames.push(f);
+            }
             let arrived = camera.arrived(time_s);
             let frame = arrived.as_ref().map(|f| CameraFrame {
                 image: f.image.as_ref(),
@@ -501,6 +556,99 @@ impl ClosedLoopScenario {
             }
         }
         out.frames = camera.counts;
+        Ok(out)
+    }
+
+    /// Replays `estimator` over a recorded run of this scenario: the
+    /// evaluated ticks' `commands` (tick `j` at `(j + 1)·dt_s`) and the
+    /// `frames` the run rendered, each handed over at the first tick at or
+    /// after its arrival (the newest one where several arrive, as the run
+    /// does). The estimator is reset, then stepped through the pre-roll
+    /// first: from rest to θ_d(0) as the run's (exact for an estimation run,
+    /// θ_c = θ_d; for a compensated run the pre-roll's commands were the
+    /// compensator's and are not recorded, so the ramp ends at the first
+    /// recorded command instead), without frames, since a log holds only
+    /// the evaluated part's. Its estimate after every evaluated tick.
+    ///
+    /// # Errors
+    /// As [`ClosedLoopScenario::validate`]; the estimator's errors; a frame
+    /// whose pixels do not fill its window ([`ControlError::Worker`]).
+    pub fn replay(
+        &self,
+        estimator: &mut dyn AngleEstimator,
+        commands: &[Command],
+        frames: &[RecordedFrame],
+    ) -> Result<Vec<Option<f64>>> {
+        let sampler = self.checked()?;
+        let motion = &self.motion;
+        let dt = motion.dt_s;
+        let images = frames
+            .iter()
+            .map(|f| {
+                let (w, h) = (f.window.width, f.window.height);
+                if f.rgb.len() != 3 * w as usize * h as usize {
+                    return Err(crate::ControlError::Worker {
+                        message: format!(
+                            "a recorded frame of {} bytes does not fill its {w}×{h} window",
+                            f.rgb.len()
+                        ),
+                    });
+                }
+                Ok(Frame {
+                    width: w,
+                    height: h,
+                    rgb: f.rgb.clone(),
+                    instrument: kflex_model::Mask::new(w, h)?,
+                    occluder: kflex_model::Mask::new(w, h)?,
+                })
+            })
+            .collect::<Result<Vec<Frame>>>()?;
+        estimator.reset();
+        let target = match (self.compensator, commands.first()) {
+            (Some(_), Some(c)) => c.theta_c_deg,
+            _ => sampler.sample(0.0).theta_d_deg,
+        };
+        let translation_mm = commands
+            .first()
+            .map_or(motion.translation_mm, |c| c.translation_mm);
+        let pre_roll: Vec<f64> = motion.pre_roll(0.0, target).collect();
+        // times since the run's start, pre-roll included, as the run's
+        let offset_s = pre_roll.len() as f64 * dt;
+        for (k, &theta_c_deg) in pre_roll.iter().enumerate() {
+            estimator.step(&EstimatorTick {
+                time_s: (k + 1) as f64 * dt,
+                dt_s: dt,
+                command: Command {
+                    theta_c_deg,
+                    translation_mm,
+                },
+                frame: None,
+            })?;
+        }
+        let mut out = Vec::with_capacity(commands.len());
+        let mut next = 0;
+        for (j, &command) in commands.iter().enumerate() {
+            let time_s = (pre_roll.len() + j + 1) as f64 * dt;
+            // the newest frame that has arrived by now
+            let mut arrived = None;
+            while next < frames.len() && frames[next].arrives_s + offset_s <= time_s + 1e-9 {
+                arrived = Some(next);
+                next += 1;
+            }
+            let frame = arrived.map(|i| CameraFrame {
+                image: Some(&images[i]),
+                window: Some(frames[i].window),
+                captured_s: frames[i].captured_s + offset_s,
+                command: frames[i].command,
+                truth_theta_a_deg: frames[i].truth_theta_a_deg,
+            });
+            out.push(estimator.step(&EstimatorTick {
+                time_s,
+                dt_s: dt,
+                command,
+                frame,
+            })?);
+        }
         Ok(out)
     }
 }

@@ -54,7 +54,7 @@ mod models;
 
 pub use closed_loop::{
     AngleEstimator, CameraFrame, CameraTiming, ClosedLoopScenario, ClosedLoopTrace, EstimatorTick,
-    FrameCounts, FrameRequest, NoisyTruth,
+    FrameCounts, FrameRequest, NoisyTruth, RecordedFrame,
 };
 pub use compensator::{
     BacklashTerm, Compensator, CompensatorConfig, CompensatorOutput, Fault, Terms,
@@ -72,7 +72,12 @@ pub use grid::{
     Record,
 };
 #[cfg(feature = "mcap")]
-pub use mcap_log::{JOINT_STATE_SCHEMA, JOINT_STATE_SCHEMA_NAME, JOINT_STATES_TOPIC, JointState};
+pub use mcap_log::{
+    CAMERA_FRAME_SCHEMA, CAMERA_FRAME_SCHEMA_NAME, CAMERA_FRAMES_TOPIC, CameraFrameInfo,
+    IMAGE_TOPIC, JOINT_STATE_SCHEMA, JOINT_STATE_SCHEMA_NAME, JOINT_STATES_TOPIC, JointState,
+    RAW_IMAGE_SCHEMA, RAW_IMAGE_SCHEMA_NAME, RecordedLog, SILHOUETTE_TOPIC, WindowInfo,
+    base64_decode, read_mcap,
+};
 pub use metrics::{LOOP_BIN_DEG, MeanStd, error_peak_to_peak, loop_width, peak_loss, rmse};
 #[cfg(feature = "estimators")]
 pub use models::{MODELS_DIR, ModelDir};

@@ -1,11 +1,23 @@
 //! MCAP logs of closed-loop runs (cargo feature `mcap`), for Foxglove and
 //! for re-reading a run.
 //!
-//! One channel, [`JOINT_STATES_TOPIC`], JSON-encoded with a `jsonschema`
-//! schema ([`JOINT_STATE_SCHEMA`]): one message per evaluated tick with
-//! θ_d, its rate, θ_c, the true and the measured θ_a and the estimate θ̂
-//! (`null` before the estimator had one), logged at the tick's time. A
-//! metadata record `kflex.run` holds the scenario (its JSON form) and the
+//! Every channel is JSON-encoded with a `jsonschema` schema, every message
+//! logged at its time since the start of evaluation:
+//! * [`JOINT_STATES_TOPIC`] ([`JOINT_STATE_SCHEMA`]): one message per
+//!   evaluated tick with θ_d, its rate, θ_c, the true and the measured θ_a
+//!   and the estimate θ̂ (`null` before the estimator had one);
+//! * where the run recorded its frames ([`ClosedLoopScenario::record_frames`]),
+//!   per frame rendered, at its capture: [`IMAGE_TOPIC`], the window's
+//!   pixels as a `foxglove.RawImage` (`rgb8`, the bytes in base64, as
+//!   Foxglove reads JSON images; [`RAW_IMAGE_SCHEMA`]);
+//!   [`SILHOUETTE_TOPIC`], the segmentation of that window resampled to
+//!   48 × 48 as IBJAE reads it (`mono8`, 255 instrument, an all-zero image
+//!   where the segmentation found none); and [`CAMERA_FRAMES_TOPIC`]
+//!   ([`CAMERA_FRAME_SCHEMA`]): where the window lies in the camera's image,
+//!   when the frame reaches the estimator, the command and the true angle at
+//!   capture. The three share the frame's sequence number.
+//!
+//! A metadata record `kflex.run` holds the scenario (its JSON form) and the
 //! run's seed. The file is written beside its path and renamed into place
 //! when complete, so a log is never half-written.
 
@@ -15,8 +27,9 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::closed_loop::{ClosedLoopScenario, ClosedLoopTrace};
+use crate::closed_loop::{ClosedLoopScenario, ClosedLoopTrace, RecordedFrame};
 use crate::error::{ControlError, Result};
+use kflex_model::Roi;
 
 /// The joint states' topic.
 pub const JOINT_STATES_TOPIC: &str = "/kflex/joint_states";
@@ -40,6 +53,148 @@ pub const JOINT_STATE_SCHEMA: &str = r#"{
   },
   "required": ["time_s", "theta_d_deg", "theta_d_rate_deg_per_s", "theta_c_deg", "theta_a_deg", "theta_a_measured_deg", "theta_hat_deg"]
 }"#;
+
+/// The camera's images' topic (`foxglove.RawImage`).
+pub const IMAGE_TOPIC: &str = "/kflex/camera/image";
+
+/// The 48 × 48 silhouettes' topic (`foxglove.RawImage`, `mono8`).
+pub const SILHOUETTE_TOPIC: &str = "/kflex/camera/silhouette";
+
+/// The frames' placement and timing topic.
+pub const CAMERA_FRAMES_TOPIC: &str = "/kflex/camera/frames";
+
+/// The name Foxglove knows its raw image schema by.
+pub const RAW_IMAGE_SCHEMA_NAME: &str = "foxglove.RawImage";
+
+/// A JSON schema of Foxglove's raw image (the fields Foxglove reads; in
+/// JSON its bytes are base64).
+pub const RAW_IMAGE_SCHEMA: &str = r#"{
+  "title": "foxglove.RawImage",
+  "description": "A raw image",
+  "type": "object",
+  "properties": {
+    "timestamp": {"type": "object", "title": "time", "properties": {"sec": {"type": "integer", "minimum": 0}, "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}}, "description": "capture time"},
+    "frame_id": {"type": "string", "description": "the image's frame of reference"},
+    "width": {"type": "integer", "minimum": 0, "description": "width, px"},
+    "height": {"type": "integer", "minimum": 0, "description": "height, px"},
+    "encoding": {"type": "string", "description": "rgb8 or mono8"},
+    "step": {"type": "integer", "minimum": 0, "description": "bytes per row"},
+    "data": {"type": "string", "contentEncoding": "base64", "description": "the pixels, row-major"}
+  },
+  "required": ["timestamp", "frame_id", "width", "height", "encoding", "step", "data"]
+}"#;
+
+/// The frames' placement and timing schema name.
+pub const CAMERA_FRAME_SCHEMA_NAME: &str = "kflex.CameraFrame";
+
+/// The JSON schema of a [`CAMERA_FRAMES_TOPIC`] message.
+pub const CAMERA_FRAME_SCHEMA: &str = r#"{
+  "title": "kflex.CameraFrame",
+  "description": "Where a frame of /kflex/camera/image lies in the camera's image, and when it reaches the estimator; times in s since the start of evaluation, angles in degrees",
+  "type": "object",
+  "properties": {
+    "captured_s": {"type": "number", "description": "capture time"},
+    "arrives_s": {"type": "number", "description": "when the estimator gets it"},
+    "window": {"type": "object", "properties": {"x0": {"type": "integer"}, "y0": {"type": "integer"}, "width": {"type": "integer"}, "height": {"type": "integer"}}, "required": ["x0", "y0", "width", "height"], "description": "the image's pixels in the camera's full image, px"},
+    "theta_c_deg": {"type": "number", "description": "the command the plant had answered at capture"},
+    "translation_mm": {"type": "number", "description": "the instrument's translation at capture"},
+    "truth_theta_a_deg": {"type": ["number", "null"], "description": "the true joint angle at capture (ground truth; null where unknown)"}
+  },
+  "required": ["captured_s", "arrives_s", "window", "theta_c_deg", "translation_mm"]
+}"#;
+
+/// A window in a [`CameraFrameInfo`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
+pub struct WindowInfo {
+    /// Left column, px.
+    pub x0: u32,
+    /// Top row, px.
+    pub y0: u32,
+    /// Width, px.
+    pub width: u32,
+    /// Height, px.
+    pub height: u32,
+}
+
+/// One message of [`CAMERA_FRAMES_TOPIC`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct CameraFrameInfo {
+    /// Capture time, s since the start of evaluation.
+    pub captured_s: f64,
+    /// When the estimator gets it, s since the start of evaluation.
+    pub arrives_s: f64,
+    /// Where its pixels lie in the camera's image.
+    pub window: WindowInfo,
+    /// The command at capture, deg.
+    pub theta_c_deg: f64,
+    /// The translation at capture, mm.
+    pub translation_mm: f64,
+    /// The true angle at capture, deg, where known.
+    #[serde(default)]
+    pub truth_theta_a_deg: Option<f64>,
+}
+
+const BASE64: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+
+/// `bytes` in standard base64 with padding (RFC 4648).
+fn base64_encode(bytes: &[u8]) -> String {
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(char::from(BASE64[(n >> (18 - 6 * k)) as usize & 63]));
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// Standard base64 (RFC 4648, padding optional, no whitespace) back to
+/// bytes; `None` for anything else.
+#[must_use]
+pub fn base64_decode(text: &str) -> Option<Vec<u8>> {
+    let text = text.trim_end_matches('=');
+    let mut out = Vec::with_capacity(text.len() * 3 / 4);
+    let (mut acc, mut bits) = (0u32, 0u32);
+    for c in text.bytes() {
+        let v = BASE64.iter().position(|&b| b == c)? as u32;
+        acc = (acc << 6) | v;
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+            acc &= (1 << bits) - 1;
+        }
+    }
+    // a lone sextet cannot end a valid encoding
+    (bits < 6).then_some(out)
+}
+
+/// A `foxglove.RawImage` message's fields.
+#[derive(Serialize)]
+struct RawImage<'a> {
+    timestamp: Stamp,
+    frame_id: &'static str,
+    width: u32,
+    height: u32,
+    encoding: &'static str,
+    step: u32,
+    data: &'a str,
+}
+
+#[derive(Serialize)]
+struct Stamp {
+    sec: u64,
+    nsec: u64,
+}
 
 /// One message of [`JOINT_STATES_TOPIC`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
@@ -70,6 +225,15 @@ fn log_error(path: &Path, e: impl std::fmt::Display) -> ControlError {
 impl ClosedLoopTrace {
     /// The joint states of every evaluated tick, in order.
     pub fn joint_states(&self) -> impl Iterator<Item = JointState> + '_ {
+        self.joint_states_with(&self.theta_hat_deg)
+    }
+
+    /// [`ClosedLoopTrace::joint_states`] with `estimate` (aligned with the
+    /// ticks) as θ̂.
+    fn joint_states_with<'a>(
+        &'a self,
+        estimate: &'a [Option<f64>],
+    ) -> impl Iterator<Item = JointState> + 'a {
         let t = &self.trace;
         (0..t.time_s.len()).map(move |k| JointState {
             time_s: t.time_s[k],
@@ -78,7 +242,7 @@ impl ClosedLoopTrace {
             theta_c_deg: self.theta_c_deg[k],
             theta_a_deg: t.theta_a_deg[k],
             theta_a_measured_deg: t.theta_a_measured_deg[k],
-            theta_hat_deg: self.theta_hat_deg[k],
+            theta_hat_deg: estimate.get(k).copied().flatten(),
         })
     }
 
@@ -90,8 +254,24 @@ impl ClosedLoopTrace {
     /// written (nothing is left at `path` then), or a time that does not fit
     /// the log's nanoseconds.
     pub fn write_mcap(&self, path: &Path, scenario: &ClosedLoopScenario, seed: u64) -> Result<()> {
+        self.write_mcap_with_estimate(path, scenario, seed, &self.theta_hat_deg)
+    }
+
+    /// [`ClosedLoopTrace::write_mcap`] with `estimate` as θ̂ (another
+    /// estimator's on the same run, aligned with the ticks), without copying
+    /// the trace and its frames.
+    ///
+    /// # Errors
+    /// As [`ClosedLoopTrace::write_mcap`].
+    pub fn write_mcap_with_estimate(
+        &self,
+        path: &Path,
+        scenario: &ClosedLoopScenario,
+        seed: u64,
+        estimate: &[Option<f64>],
+    ) -> Result<()> {
         let tmp = path.with_extension("mcap.tmp");
-        let written = self.write_mcap_to(&tmp, scenario, seed);
+        let written = self.write_mcap_to(&tmp, scenario, seed, estimate);
         match written.and_then(|()| std::fs::rename(&tmp, path).map_err(|e| log_error(path, e))) {
             Ok(()) => Ok(()),
             Err(e) => {
@@ -101,7 +281,13 @@ impl ClosedLoopTrace {
         }
     }
 
-    fn write_mcap_to(&self, path: &Path, scenario: &ClosedLoopScenario, seed: u64) -> Result<()> {
+    fn write_mcap_to(
+        &self,
+        path: &Path,
+        scenario: &ClosedLoopScenario,
+        seed: u64,
+        estimate: &[Option<f64>],
+    ) -> Result<()> {
         let err = |e: &dyn std::fmt::Display| log_error(path, e);
         let file = std::fs::File::create(path).map_err(|e| err(&e))?;
         let mut out = mcap::Writer::with_options(
@@ -130,29 +316,347 @@ impl ClosedLoopTrace {
             ]),
         })
         .map_err(|e| err(&e))?;
+        // to the nearest nanosecond (2.01 s is 2,010,000,000 ns)
+        let nanos = |time_s: f64| {
+            let ns = (time_s * 1e9).round();
+            if (0.0..1.8e19).contains(&ns) {
+                Ok(ns as u64)
+            } else {
+                Err(err(&format!("time {time_s} s does not fit the log")))
+            }
+        };
+        let frames = if self.camera_frames.is_empty() {
+            None
+        } else {
+            let image = out
+                .add_schema(
+                    RAW_IMAGE_SCHEMA_NAME,
+                    "jsonschema",
+                    RAW_IMAGE_SCHEMA.as_bytes(),
+                )
+                .map_err(|e| err(&e))?;
+            let info = out
+                .add_schema(
+                    CAMERA_FRAME_SCHEMA_NAME,
+                    "jsonschema",
+                    CAMERA_FRAME_SCHEMA.as_bytes(),
+                )
+                .map_err(|e| err(&e))?;
+            let mut channel = |schema, topic| {
+                out.add_channel(schema, topic, "json", &BTreeMap::new())
+                    .map_err(|e| err(&e))
+            };
+            Some((
+                channel(image, IMAGE_TOPIC)?,
+                channel(image, SILHOUETTE_TOPIC)?,
+                channel(info, CAMERA_FRAMES_TOPIC)?,
+            ))
+        };
+        let mut segmenter =
+            kflex_estimate::Segmenter::new(kflex_estimate::SegmentParams::default())
+                .map_err(|e| err(&e))?;
         let mut data = Vec::new();
-        for (k, state) in self.joint_states().enumerate() {
-            // to the nearest nanosecond (2.01 s is 2,010,000,000 ns)
-            let ns = (state.time_s * 1e9).round();
-            if !(0.0..1.8e19).contains(&ns) {
-                return Err(err(&format!(
-                    "time {} s does not fit the log",
-                    state.time_s
-                )));
+        let mut next_frame = 0;
+        for (k, state) in self.joint_states_with(estimate).enumerate() {
+            let ns = nanos(state.time_s)?;
+            // the frames captured by now, in time order with the ticks
+            while let (Some(f), Some(channels)) = (self.camera_frames.get(next_frame), frames)
+                && nanos(f.captured_s)? <= ns
+            {
+                write_frame(
+                    &mut out,
+                    channels,
+                    next_frame,
+                    f,
+                    nanos(f.captured_s)?,
+                    &mut segmenter,
+                )
+                .map_err(|e| err(&e))?;
+                next_frame += 1;
             }
             data.clear();
             serde_json::to_writer(&mut data, &state).map_err(|e| err(&e))?;
             let header = mcap::records::MessageHeader {
                 channel_id: channel,
                 sequence: u32::try_from(k).unwrap_or(u32::MAX),
-                log_time: ns as u64,
-                publish_time: ns as u64,
+                log_time: ns,
+                publish_time: ns,
             };
             out.write_to_known_channel(&header, &data)
                 .map_err(|e| err(&e))?;
         }
+        if let Some(channels) = frames {
+            for (i, f) in self.camera_frames.iter().enumerate().skip(next_frame) {
+                write_frame(
+                    &mut out,
+                    channels,
+                    i,
+                    f,
+                    nanos(f.captured_s)?,
+                    &mut segmenter,
+                )
+                .map_err(|e| err(&e))?;
+            }
+        }
         out.finish().map_err(|e| err(&e))?;
         let file = out.into_inner().into_inner().map_err(|e| err(&e.error()))?;
         file.sync_all().map_err(|e| err(&e))
+    }
+}
+
+/// What [`read_mcap`] finds in a log.
+#[derive(Debug, Clone, Default)]
+pub struct RecordedLog {
+    /// The run's scenario (metadata `kflex.run`), where the log has it.
+    pub scenario: Option<ClosedLoopScenario>,
+    /// The run's seed, where the log has it.
+    pub seed: Option<u64>,
+    /// Every tick's joint state, in time order.
+    pub states: Vec<JointState>,
+    /// Every frame, in order of arrival.
+    pub frames: Vec<RecordedFrame>,
+}
+
+/// A message's JSON, or a [`ControlError::Log`] naming `path` and `what`.
+fn parse<T: serde::de::DeserializeOwned>(path: &Path, what: &str, data: &[u8]) -> Result<T> {
+    serde_json::from_slice(data).map_err(|e| log_error(path, format!("{what}: {e}")))
+}
+
+/// The fields of a `foxglove.RawImage` message that a frame needs.
+#[derive(serde::Deserialize)]
+struct RawImageIn {
+    width: u32,
+    height: u32,
+    encoding: String,
+    #[serde(default)]
+    step: Option<u32>,
+    data: String,
+}
+
+/// Reads a run's log (see the module docs): its joint states, and its
+/// frames, each image of [`IMAGE_TOPIC`] with the [`CAMERA_FRAMES_TOPIC`]
+/// message of the same sequence number. A log whose frames came from
+/// elsewhere is read as long as its channels follow the schemas: an image
+/// without its placement is taken as the camera's whole image, captured and
+/// arriving at its log time, with the command of the tick before it.
+/// Images must be `rgb8` without row padding.
+///
+/// # Errors
+/// [`ControlError::Log`] naming the file and what is wrong: unreadable, not
+/// MCAP, no joint states, a message that does not follow its schema, an
+/// image of another encoding or whose data does not fill it.
+pub fn read_mcap(path: &Path) -> Result<RecordedLog> {
+    let bytes = std::fs::read(path).map_err(|e| log_error(path, e))?;
+    let mut log = RecordedLog::default();
+    // metadata: the scenario and the seed
+    if let Ok(Some(summary)) = mcap::Summary::read(&bytes) {
+        for index in &summary.metadata_indexes {
+            let meta = mcap::read::metadata(&bytes, index).map_err(|e| log_error(path, e))?;
+            if meta.name == "kflex.run" {
+                if let Some(json) = meta.metadata.get("scenario") {
+                    log.scenario = Some(parse(path, "the scenario metadata", json.as_bytes())?);
+                }
+                log.seed = meta.metadata.get("seed").and_then(|s| s.parse().ok());
+            }
+        }
+    }
+    let mut images: BTreeMap<u32, (u64, RawImageIn)> = BTreeMap::new();
+    let mut infos: BTreeMap<u32, CameraFrameInfo> = BTreeMap::new();
+    for message in mcap::MessageStream::new(&bytes).map_err(|e| log_error(path, e))? {
+        let m = message.map_err(|e| log_error(path, e))?;
+        match m.channel.topic.as_str() {
+            JOINT_STATES_TOPIC => log.states.push(parse(path, JOINT_STATES_TOPIC, &m.data)?),
+            IMAGE_TOPIC => {
+                images.insert(m.sequence, (m.log_time, parse(path, IMAGE_TOPIC, &m.data)?));
+            }
+            CAMERA_FRAMES_TOPIC => {
+                infos.insert(m.sequence, parse(path, CAMERA_FRAMES_TOPIC, &m.data)?);
+            }
+            _ => {}
+        }
+    }
+    if log.states.is_empty() {
+        return Err(log_error(
+            path,
+            format!("no joint states ({JOINT_STATES_TOPIC})"),
+        ));
+    }
+    log.states.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    let translation = log
+        .scenario
+        .as_ref()
+        .map_or(0.0, |s| s.motion.translation_mm);
+    for (sequence, (log_time, image)) in images {
+        if image.encoding != "rgb8" || image.step.is_some_and(|s| s != 3 * image.width) {
+            return Err(log_error(
+                path,
+                format!(
+                    "image {sequence}: encoding {:?}, step {:?}: replay reads rgb8 without row padding",
+                    image.encoding, image.step
+                ),
+            ));
+        }
+        let rgb = base64_decode(&image.data)
+            .filter(|d| d.len() == 3 * image.width as usize * image.height as usize)
+            .ok_or_else(|| {
+                log_error(
+                    path,
+                    format!(
+                        "image {sequence}: its data is not base64 of {}×{} rgb8 pixels",
+                        image.width, image.height
+                    ),
+                )
+            })?;
+        let time_s = log_time as f64 / 1e9;
+        let frame = match infos.get(&sequence) {
+            Some(info) => RecordedFrame {
+                captured_s: info.captured_s,
+                arrives_s: info.arrives_s,
+                window: Roi {
+                    x0: info.window.x0,
+                    y0: info.window.y0,
+                    width: info.window.width,
+                    height: info.window.height,
+                },
+                rgb,
+                command: kflex_model::Command {
+                    theta_c_deg: info.theta_c_deg,
+                    translation_mm: info.translation_mm,
+                },
+                truth_theta_a_deg: info.truth_theta_a_deg.unwrap_or(f64::NAN),
+            },
+            None => {
+                let before = log
+                    .states
+                    .iter()
+                    .take_while(|s| s.time_s <= time_s + 1e-9)
+                    .last()
+                    .or(log.states.first());
+                RecordedFrame {
+                    captured_s: time_s,
+                    arrives_s: time_s,
+                    window: Roi::whole(image.width, image.height),
+                    rgb,
+                    command: kflex_model::Command {
+                        theta_c_deg: before.map_or(0.0, |s| s.theta_c_deg),
+                        translation_mm: translation,
+                    },
+                    truth_theta_a_deg: f64::NAN,
+                }
+            }
+        };
+        if frame.window.width != image.width || frame.window.height != image.height {
+            return Err(log_error(
+                path,
+                format!(
+                    "image {sequence} is {}×{}, its window {}×{}",
+                    image.width, image.height, frame.window.width, frame.window.height
+                ),
+            ));
+        }
+        log.frames.push(frame);
+    }
+    log.frames
+        .sort_by(|a, b| a.arrives_s.total_cmp(&b.arrives_s));
+    Ok(log)
+}
+
+/// Writes frame `i` of a run: its image, its silhouette and where and when
+/// it lies, on `channels` (image, silhouette, frames), at `ns`.
+fn write_frame<W: std::io::Write + std::io::Seek>(
+    out: &mut mcap::Writer<W>,
+    (image, silhouette, info): (u16, u16, u16),
+    i: usize,
+    f: &RecordedFrame,
+    ns: u64,
+    segmenter: &mut kflex_estimate::Segmenter,
+) -> std::result::Result<(), Box<dyn std::error::Error>> {
+    let header = |channel_id| mcap::records::MessageHeader {
+        channel_id,
+        sequence: u32::try_from(i).unwrap_or(u32::MAX),
+        log_time: ns,
+        publish_time: ns,
+    };
+    let stamp = || Stamp {
+        sec: ns / 1_000_000_000,
+        nsec: ns % 1_000_000_000,
+    };
+    let (w, h) = (f.window.width, f.window.height);
+    let rgb = base64_encode(&f.rgb);
+    let message = serde_json::to_vec(&RawImage {
+        timestamp: stamp(),
+        frame_id: "endoscope",
+        width: w,
+        height: h,
+        encoding: "rgb8",
+        step: 3 * w,
+        data: &rgb,
+    })?;
+    out.write_to_known_channel(&header(image), &message)?;
+    // the segmentation as IBJAE reads the window: 48 × 48, or nothing found
+    let side = kflex_estimate::SegmentParams::default().out;
+    let small: Vec<u8> = match segmenter.segment(&f.rgb, w, h, Roi::whole(w, h)) {
+        Ok(s) => s
+            .small
+            .data()
+            .iter()
+            .map(|&v| if v != 0 { 255 } else { 0 })
+            .collect(),
+        Err(kflex_estimate::EstimateError::NoInstrument { .. }) => {
+            vec![0; side as usize * side as usize]
+        }
+        Err(e) => return Err(Box::new(e)),
+    };
+    let mono = base64_encode(&small);
+    let message = serde_json::to_vec(&RawImage {
+        timestamp: stamp(),
+        frame_id: "silhouette",
+        width: side,
+        height: side,
+        encoding: "mono8",
+        step: side,
+        data: &mono,
+    })?;
+    out.write_to_known_channel(&header(silhouette), &message)?;
+    let message = serde_json::to_vec(&CameraFrameInfo {
+        captured_s: f.captured_s,
+        arrives_s: f.arrives_s,
+        window: WindowInfo {
+            x0: f.window.x0,
+            y0: f.window.y0,
+            width: w,
+            height: h,
+        },
+        theta_c_deg: f.command.theta_c_deg,
+        translation_mm: f.command.translation_mm,
+        truth_theta_a_deg: Some(f.truth_theta_a_deg),
+    })?;
+    out.write_to_known_channel(&header(info), &message)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_round_trips_and_matches_the_rfc_examples() {
+        // RFC 4648, section 10
+        for (plain, coded) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(base64_encode(plain.as_bytes()), coded);
+            assert_eq!(base64_decode(coded).unwrap(), plain.as_bytes());
+        }
+        let bytes: Vec<u8> = (0..=255).collect();
+        assert_eq!(base64_decode(&base64_encode(&bytes)).unwrap(), bytes);
+        assert!(base64_decode("Zm9v!").is_none());
+        assert!(base64_decode("Z").is_none());
     }
 }

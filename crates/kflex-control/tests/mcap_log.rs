@@ -108,3 +108,240 @@ fn an_unwritable_log_is_an_error_naming_it_and_leaves_nothing() {
     assert_eq!(std::fs::read(&good).unwrap(), b"old");
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+/// Asks for the pixels of the paper's region every frame and estimates nothing.
+struct Watcher;
+
+impl kflex_control::AngleEstimator for Watcher {
+    fn frame_request(&self, _command: kflex_model::Command) -> kflex_control::FrameRequest {
+        kflex_control::FrameRequest::Pixels(
+            kflex_model::Roi::paper(&kflex_model::Camera::default()).expect("the paper's region"),
+        )
+    }
+    fn step(
+        &mut self,
+        _tick: &kflex_control::EstimatorTick<'_>,
+    ) -> kflex_control::Result<Option<f64>> {
+        Ok(None)
+    }
+    fn reset(&mut self) {}
+}
+
+#[test]
+fn recorded_frames_go_into_the_log_as_images_silhouettes_and_placements() {
+    use kflex_control::{
+        CAMERA_FRAMES_TOPIC, CameraFrameInfo, IMAGE_TOPIC, RAW_IMAGE_SCHEMA_NAME, SILHOUETTE_TOPIC,
+        base64_decode,
+    };
+    let scenario = ClosedLoopScenario {
+        motion: OpenLoopScenario {
+            periods: 0.5,
+            pre_roll_s: 0.5,
+            ..OpenLoopScenario::default()
+        },
+        camera: kflex_control::CameraTiming {
+            latency_s: 0.05,
+            drop_probability: 0.2,
+            ..kflex_control::CameraTiming::default()
+        },
+        compensator: None,
+        record_frames: true,
+        ..ClosedLoopScenario::default()
+    };
+    let mut plant = Plant::new(PlantConfig::default()).unwrap();
+    let trace = scenario.run(&mut plant, &mut Watcher, 5).unwrap();
+    let frames = &trace.camera_frames;
+    // 30 frames/s over half a period (3.1 s), a fifth of them lost, none
+    // from the pre-roll
+    assert!((60..=85).contains(&frames.len()), "{}", frames.len());
+    assert!(frames.iter().all(|f| f.captured_s > 0.0));
+    assert!(frames.windows(2).all(|w| w[0].captured_s < w[1].captured_s));
+    assert!(
+        frames
+            .iter()
+            .all(|f| (f.arrives_s - f.captured_s - 0.05).abs() < 1e-9)
+    );
+    // the same run without recording keeps nothing, and runs the same
+    let quiet = ClosedLoopScenario {
+        record_frames: false,
+        ..scenario.clone()
+    };
+    let mut plant = Plant::new(PlantConfig::default()).unwrap();
+    let untraced = quiet.run(&mut plant, &mut Watcher, 5).unwrap();
+    assert!(untraced.camera_frames.is_empty());
+    assert_eq!(untraced.trace, trace.trace);
+
+    let dir = temp_dir("frames");
+    let path = dir.join("run.mcap");
+    trace.write_mcap(&path, &scenario, 5).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let (mut images, mut silhouettes, mut infos, mut ticks) = (0, 0, 0, 0);
+    let mut last_time = 0;
+    for message in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = message.unwrap();
+        assert!(m.log_time >= last_time, "messages in time order");
+        last_time = m.log_time;
+        let json: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
+        let topic = m.channel.topic.as_str();
+        if topic == JOINT_STATES_TOPIC {
+            ticks += 1;
+            continue;
+        }
+        let i = m.sequence as usize;
+        let f = &frames[i];
+        assert_eq!(m.log_time, (f.captured_s * 1e9).round() as u64, "{topic}");
+        match topic {
+            t if t == IMAGE_TOPIC => {
+                assert_eq!(
+                    m.channel.schema.as_ref().unwrap().name,
+                    RAW_IMAGE_SCHEMA_NAME
+                );
+                assert_eq!(json["encoding"], "rgb8");
+                assert_eq!(json["width"], f.window.width);
+                assert_eq!(json["step"], 3 * f.window.width);
+                let data = base64_decode(json["data"].as_str().unwrap()).unwrap();
+                assert!(data == f.rgb, "frame {i}'s pixels");
+                images += 1;
+            }
+            t if t == SILHOUETTE_TOPIC => {
+                assert_eq!(json["encoding"], "mono8");
+                assert_eq!(
+                    (json["width"].as_u64(), json["height"].as_u64()),
+                    (Some(48), Some(48))
+                );
+                let data = base64_decode(json["data"].as_str().unwrap()).unwrap();
+                assert_eq!(data.len(), 48 * 48);
+                assert!(data.iter().all(|&v| v == 0 || v == 255));
+                // the instrument is in every frame of the region
+                let on = data.iter().filter(|&&v| v == 255).count();
+                assert!(on > 48, "frame {i}: {on} instrument pixels");
+                silhouettes += 1;
+            }
+            t if t == CAMERA_FRAMES_TOPIC => {
+                let info: CameraFrameInfo = serde_json::from_value(json).unwrap();
+                assert_eq!(info.window.x0, f.window.x0);
+                assert_eq!(info.window.height, f.window.height);
+                assert!((info.arrives_s - f.arrives_s).abs() < 1e-12);
+                // serde_json's default parsing may miss the last bit
+                let truth = info.truth_theta_a_deg.unwrap();
+                assert!((truth - f.truth_theta_a_deg).abs() < 1e-12);
+                infos += 1;
+            }
+            other => panic!("unexpected topic {other}"),
+        }
+    }
+    assert_eq!(ticks, trace.trace.time_s.len());
+    assert_eq!(
+        (images, silhouettes, infos),
+        (frames.len(), frames.len(), frames.len())
+    );
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+/// An estimator of the pixels: θ_c plus a tenth of the last frame's mean
+/// green level (held between frames), so its estimate depends on every
+/// frame it was handed and on every command.
+#[derive(Default)]
+struct GreenMeter {
+    green: Option<f64>,
+}
+
+impl kflex_control::AngleEstimator for GreenMeter {
+    fn frame_request(&self, _command: kflex_model::Command) -> kflex_control::FrameRequest {
+        Watcher.frame_request(_command)
+    }
+    fn step(
+        &mut self,
+        tick: &kflex_control::EstimatorTick<'_>,
+    ) -> kflex_control::Result<Option<f64>> {
+        if let Some(image) = tick.frame.and_then(|f| f.image) {
+            let g: u64 = image
+                .rgb
+                .iter()
+                .skip(1)
+                .step_by(3)
+                .map(|&v| u64::from(v))
+                .sum();
+            self.green = Some(g as f64 / (image.rgb.len() / 3) as f64);
+        }
+        Ok(self.green.map(|g| tick.command.theta_c_deg + 0.1 * g))
+    }
+    fn reset(&mut self) {
+        self.green = None;
+    }
+}
+
+#[test]
+fn a_replay_over_the_read_log_gives_the_runs_estimates() {
+    let scenario = ClosedLoopScenario {
+        motion: OpenLoopScenario {
+            periods: 0.3,
+            pre_roll_s: 0.5,
+            ..OpenLoopScenario::default()
+        },
+        camera: kflex_control::CameraTiming {
+            latency_s: 0.045,
+            drop_probability: 0.3,
+            ..kflex_control::CameraTiming::default()
+        },
+        compensator: None,
+        record_frames: true,
+        ..ClosedLoopScenario::default()
+    };
+    let mut plant = Plant::new(PlantConfig::default()).unwrap();
+    let trace = scenario
+        .run(&mut plant, &mut GreenMeter::default(), 9)
+        .unwrap();
+    let dir = temp_dir("replay");
+    let path = dir.join("run.mcap");
+    trace.write_mcap(&path, &scenario, 9).unwrap();
+    let log = kflex_control::read_mcap(&path).unwrap();
+    assert_eq!(log.seed, Some(9));
+    assert_eq!(log.scenario.as_ref(), Some(&scenario));
+    assert_eq!(log.states.len(), trace.trace.time_s.len());
+    assert_eq!(log.frames.len(), trace.camera_frames.len());
+    for (read, kept) in log.frames.iter().zip(&trace.camera_frames) {
+        assert_eq!(read.window, kept.window);
+        assert!(read.rgb == kept.rgb);
+        assert!((read.arrives_s - kept.arrives_s).abs() < 1e-12);
+    }
+    let commands: Vec<kflex_model::Command> = log
+        .states
+        .iter()
+        .map(|s| kflex_model::Command {
+            theta_c_deg: s.theta_c_deg,
+            translation_mm: scenario.motion.translation_mm,
+        })
+        .collect();
+    let replayed = scenario
+        .replay(&mut GreenMeter::default(), &commands, &log.frames)
+        .unwrap();
+    // from the first recorded frame's arrival on, the same estimates (before
+    // it the run held a pre-roll frame, which the log does not keep)
+    let first = log.frames[0].arrives_s;
+    let mut compared = 0;
+    for ((state, r), t) in log.states.iter().zip(&replayed).zip(&trace.theta_hat_deg) {
+        if state.time_s + 1e-9 >= first {
+            let (r, t) = (r.unwrap(), t.unwrap());
+            assert!(
+                (r - t).abs() < 1e-9,
+                "at {} s: {r} against {t}",
+                state.time_s
+            );
+            compared += 1;
+        }
+    }
+    assert!(compared > 150, "{compared}");
+    // a frame that does not fill its window is refused, not read past
+    let mut broken = log.frames.clone();
+    broken[0].rgb.pop();
+    let e = scenario
+        .replay(&mut GreenMeter::default(), &commands, &broken)
+        .unwrap_err();
+    assert!(e.to_string().contains("does not fill"), "{e}");
+    // a file that is not a log: an error naming it
+    std::fs::write(dir.join("not.mcap"), b"hello").unwrap();
+    let e = kflex_control::read_mcap(&dir.join("not.mcap")).unwrap_err();
+    assert!(e.to_string().contains("not.mcap"), "{e}");
+    std::fs::remove_dir_all(dir).unwrap();
+}
