@@ -125,3 +125,38 @@ def test_ctrl_c_stops_a_running_grid_with_keyboard_interrupt():
         timer.cancel()
     # the runs in progress finish (a few ms each), nothing after them starts
     assert time.monotonic() - start < 5.0
+
+
+def test_the_runs_mcap_logs_hold_what_the_records_say(tmp_path: Path):
+    import json
+
+    from mcap.reader import make_reader
+
+    logs_dir = tmp_path / "logs"
+    out = kflex.run_experiment(small(["none"]), mcap_dir=logs_dir, time_series=False)
+    (record,) = out["records"]
+    logs = sorted(logs_dir.glob("*.mcap"))
+    assert [p.name for p in logs] == ["IX_90deg_0pct_none_seed11.mcap", "IX_90deg_0pct_none_seed12.mcap"]
+    rmses = []
+    for path, seed in zip(logs, record["seeds"]):
+        with path.open("rb") as f:
+            reader = make_reader(f)
+            summary = reader.get_summary()
+            assert {c.topic for c in summary.channels.values()} == {"/kflex/joint_states"}
+            states = [json.loads(m.data) for _, _, m in reader.iter_messages()]
+            (meta,) = list(reader.iter_metadata())
+        assert meta.metadata["seed"] == str(seed)
+        # one period of 10 ms ticks, no estimate on the uncompensated plant
+        assert len(states) == 629
+        assert all(s["theta_hat_deg"] is None for s in states)
+        measured = np.array([s["theta_a_measured_deg"] for s in states])
+        desired = np.array([s["theta_d_deg"] for s in states])
+        rmses.append(rmse(measured, desired))
+    # the record's RMSE ± std is over these two logs
+    assert record["rmse_deg"] == pytest.approx(np.mean(rmses), rel=1e-9)
+    assert record["rmse_std_deg"] == pytest.approx(np.std(rmses, ddof=1), rel=1e-9)
+    # a directory that cannot be made is an OSError before any run
+    blocker = tmp_path / "a-file"
+    blocker.write_text("x")
+    with pytest.raises(OSError, match="a-file"):
+        kflex.run_experiment(small(["none"]), mcap_dir=blocker / "logs")

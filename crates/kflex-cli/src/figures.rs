@@ -12,11 +12,12 @@ use std::sync::Mutex;
 use anyhow::Result;
 use kflex_control::{Case, CaseKind, EstimatorKind, ExperimentGrid, GridRun};
 
-use crate::grid::{Row, case_stem, safe_name};
+use crate::grid::Row;
 use crate::plots::{
     BLACK_LINE, BLUE, BarGroup, BarPair, Bars, Curve, Figure, GREEN, GREY, Lines, ORANGE, PINK,
     Series, VERMILLION,
 };
+use kflex_control::safe_file_name;
 use plotters::style::RGBColor;
 
 /// An estimator's colour, the same in every figure.
@@ -137,7 +138,7 @@ fn case_title(case: &Case) -> String {
 
 /// A case's time series and loops.
 fn case_figures(dir: &Path, case: &Case, run: &CaseRun) -> Result<Vec<PathBuf>> {
-    let stem = case_stem(case);
+    let stem = case.file_stem();
     let theta_d: Vec<Option<f64>> = run.theta_d_deg.iter().copied().map(Some).collect();
     // (name, colour, values) of every line after θ_d
     let mut lines: Vec<(String, RGBColor, &[Option<f64>])> = Vec::new();
@@ -272,7 +273,7 @@ fn table_figures(dir: &Path, grid: &ExperimentGrid, rows: &[Row]) -> Result<Vec<
                 })
                 .collect(),
         };
-        let stem = format!("table_{}", safe_name(table));
+        let stem = format!("table_{}", safe_file_name(table));
         written.extend(rmse.write(dir, &format!("{stem}_rmse"))?);
         if compensation {
             let width = Bars {

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use kflex_control::{
-    Case, CaseKind, EstimatorKind, ExperimentGrid, GridRun, MeanStd, OcclusionCase, Record,
+    CaseKind, EstimatorKind, ExperimentGrid, GridRun, MeanStd, OcclusionCase, Record,
 };
 use kflex_model::Camera;
 use serde::Serialize;
@@ -120,52 +120,6 @@ impl Row {
             dt_s: grid.scenario.motion.dt_s,
         })
     }
-}
-
-/// A case in file names: `V_0deg_40pct-distal` (the table's name made safe).
-pub(crate) fn case_stem(case: &Case) -> String {
-    let occlusion = case.occlusion.name().replace('%', "pct").replace(' ', "-");
-    format!(
-        "{}_{}deg_{occlusion}",
-        safe_name(&case.table),
-        case.sheath_deg
-    )
-}
-
-/// `name` with every character but ASCII letters, digits, `-` and `.` made `_`.
-pub(crate) fn safe_name(name: &str) -> String {
-    name.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '.' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
-}
-
-/// The MCAP log of one estimator's view of a run, under `dir`:
-/// `V_0deg_40pct-distal_kbjae_seed2020.mcap`.
-fn log_path(dir: &Path, run: &GridRun<'_>, estimator: EstimatorKind) -> PathBuf {
-    dir.join(format!(
-        "{}_{}_seed{}.mcap",
-        case_stem(run.case),
-        estimator.name(),
-        run.seed
-    ))
-}
-
-/// Writes a run's MCAP logs, one per estimator on it (an estimation run's
-/// estimators share it; each log carries its own estimate).
-fn write_logs(dir: &Path, run: &GridRun<'_>) -> kflex_control::Result<()> {
-    for (i, &estimator) in run.estimators.iter().enumerate() {
-        let path = log_path(dir, run, estimator);
-        let estimate = run.estimates.get(i).copied().unwrap_or(&[]);
-        run.trace
-            .write_mcap_with_estimate(&path, run.scenario, run.seed, estimate)?;
-    }
-    Ok(())
 }
 
 /// How a scenario runs.
@@ -331,7 +285,7 @@ pub fn run(
             f.take(run);
         }
         match &logs {
-            Some(dir) => write_logs(dir, run),
+            Some(dir) => run.write_logs(dir).map(|_| ()),
             None => Ok(()),
         }
     };

@@ -146,6 +146,34 @@ pub struct Case {
     pub occlusion: OcclusionCase,
 }
 
+impl Case {
+    /// The case in file names: `V_0deg_40pct-distal` (the table's name with
+    /// every character but ASCII letters, digits, `-` and `.` made `_`).
+    #[must_use]
+    pub fn file_stem(&self) -> String {
+        let occlusion = self.occlusion.name().replace('%', "pct").replace(' ', "-");
+        format!(
+            "{}_{}deg_{occlusion}",
+            safe_file_name(&self.table),
+            self.sheath_deg
+        )
+    }
+}
+
+/// `name` with every character but ASCII letters, digits, `-` and `.` made `_`.
+#[must_use]
+pub fn safe_file_name(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '.' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
 /// A grid of experiments, as a scenario file holds it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -552,6 +580,33 @@ pub struct GridRun<'a> {
     pub estimates: &'a [&'a [Option<f64>]],
     /// The run; its `theta_hat_deg` is the first estimator's.
     pub trace: &'a ClosedLoopTrace,
+}
+
+#[cfg(feature = "mcap")]
+impl GridRun<'_> {
+    /// Writes the run's MCAP logs into `dir`, one per estimator on it (an
+    /// estimation run's estimators share it; each log carries its own
+    /// estimate as θ̂): `V_0deg_40pct-distal_kbjae_seed2020.mcap`. The
+    /// paths written, in the run's estimator order.
+    ///
+    /// # Errors
+    /// As [`ClosedLoopTrace::write_mcap`].
+    pub fn write_logs(&self, dir: &std::path::Path) -> Result<Vec<std::path::PathBuf>> {
+        let mut written = Vec::with_capacity(self.estimators.len());
+        for (i, &estimator) in self.estimators.iter().enumerate() {
+            let path = dir.join(format!(
+                "{}_{}_seed{}.mcap",
+                self.case.file_stem(),
+                estimator.name(),
+                self.seed
+            ));
+            let estimate = self.estimates.get(i).copied().unwrap_or(&[]);
+            self.trace
+                .write_mcap_with_estimate(&path, self.scenario, self.seed, estimate)?;
+            written.push(path);
+        }
+        Ok(written)
+    }
 }
 
 /// Several estimators on one run: every tick goes to each, the camera

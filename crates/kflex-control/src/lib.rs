@@ -69,7 +69,7 @@ pub use estimators::IbjaeAlone;
 pub use experiment::{GridRow, OpenLoopGrid, OpenLoopScenario, RunMetrics, Trace};
 pub use grid::{
     Case, CaseKind, EstimatorKind, ExperimentGrid, GridRun, MakeEstimator, OcclusionCase, OnRun,
-    Record,
+    Record, safe_file_name,
 };
 #[cfg(feature = "mcap")]
 pub use mcap_log::{

@@ -176,7 +176,11 @@ fn run_dict(py: Python<'_>, run: RunSeries) -> PyResult<Bound<'_, PyDict>> {
 /// `sheath_deg`, `occlusion`, `seed`, `background`, `estimators`, and
 /// float64 arrays `time_s`, `theta_d_deg`, `theta_c_deg`, `theta_a_deg`,
 /// `theta_a_measured_deg`, and `estimates`: estimator name to its
-/// estimate, NaN before it had one), in the order the runs ended.
+/// estimate, NaN before it had one), in the order the runs ended. With
+/// `mcap_dir`, every run's MCAP log goes there as `kflex-cli run --mcap`
+/// writes them (one per estimator of the run,
+/// `IX_90deg_0pct_none_seed2020.mcap`), and with `mcap_frames` the logs hold
+/// the camera's frames too.
 ///
 /// Raises `ValueError` naming the file, line and field for a bad scenario
 /// file, `RangeError` for a setting out of range, `RuntimeError` naming the
@@ -184,15 +188,17 @@ fn run_dict(py: Python<'_>, run: RunSeries) -> PyResult<Bound<'_, PyDict>> {
 /// run), and the runs' own errors. Ctrl-C stops it: the runs in progress
 /// finish, no further run starts, and `KeyboardInterrupt` is raised.
 #[pyfunction]
-#[pyo3(signature = (grid, models = None, jobs = None, time_series = true))]
+#[pyo3(signature = (grid, models = None, jobs = None, time_series = true, mcap_dir = None, mcap_frames = false))]
 pub fn run_experiment<'py>(
     py: Python<'py>,
     grid: &Bound<'py, PyAny>,
     models: Option<PathBuf>,
     jobs: Option<usize>,
     time_series: bool,
+    mcap_dir: Option<PathBuf>,
+    mcap_frames: bool,
 ) -> Result<Bound<'py, PyDict>> {
-    let grid: ExperimentGrid = if let Ok(g) = grid.extract::<PyExperimentGrid>() {
+    let mut grid: ExperimentGrid = if let Ok(g) = grid.extract::<PyExperimentGrid>() {
         g.inner
     } else if let Ok(path) = grid.extract::<PathBuf>() {
         PyExperimentGrid::load(path)?.inner
@@ -202,6 +208,18 @@ pub fn run_experiment<'py>(
             grid.get_type().name().map_err(Error::Py)?
         ))));
     };
+    // the logs' directory is made before any run, so that one that cannot
+    // be is an error before the work
+    if let Some(dir) = &mcap_dir {
+        std::fs::create_dir_all(dir).map_err(|e| {
+            Error::Py(pyo3::exceptions::PyOSError::new_err(format!(
+                "the MCAP directory {} cannot be made: {e}",
+                dir.display()
+            )))
+        })?;
+    }
+    grid.scenario.record_frames =
+        mcap_dir.is_some() && (mcap_frames || grid.scenario.record_frames);
     let models = ModelDir::new(&models.unwrap_or_else(|| PathBuf::from(kflex_control::MODELS_DIR)));
     let jobs = jobs
         .unwrap_or_else(|| {
@@ -224,6 +242,9 @@ pub fn run_experiment<'py>(
             }
             if time_series && let Ok(mut r) = runs.lock() {
                 r.push(RunSeries::of(run));
+            }
+            if let Some(dir) = &mcap_dir {
+                run.write_logs(dir)?;
             }
             Ok(())
         };

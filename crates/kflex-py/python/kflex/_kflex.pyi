@@ -614,6 +614,8 @@ def run_experiment(
     models: str | os.PathLike[str] | None = None,
     jobs: int | None = None,
     time_series: bool = True,
+    mcap_dir: str | os.PathLike[str] | None = None,
+    mcap_frames: bool = False,
 ) -> dict[str, list[dict[str, Any]]]: ...
 
 # ---- estimators on ONNX models: KBJAE, the SCNN, the feature index, IBJAE, LBHJAE --
