@@ -48,8 +48,9 @@ build:
 # kflex-estimate's features are tested too: `onnx` (ONNX Runtime, KBJAE, the
 # SCNN; its tests load the runtime library from .venv, which `make test`
 # creates first) and `index` (the feature index; with `onnx`, IBJAE and LBHJAE);
-# kflex-control's `estimators` (those estimators in the closed loop) and `mcap` (logs).
-RUST_TEST_FEATURES := --features kflex-estimate/onnx,kflex-estimate/index,kflex-control/estimators,kflex-control/mcap
+# kflex-control's `estimators` (those estimators in the closed loop), `mcap` (logs)
+# and `paper` (the paper's figures beside the grid's results).
+RUST_TEST_FEATURES := --features kflex-estimate/onnx,kflex-estimate/index,kflex-control/estimators,kflex-control/mcap,kflex-control/paper
 test-rust: venv
 	$(CARGO) test --workspace --locked $(RUST_TEST_FEATURES)
 

@@ -160,3 +160,18 @@ def test_the_runs_mcap_logs_hold_what_the_records_say(tmp_path: Path):
     blocker.write_text("x")
     with pytest.raises(OSError, match="a-file"):
         kflex.run_experiment(small(["none"]), mcap_dir=blocker / "logs")
+
+
+def test_records_carry_the_papers_figures_as_results_json_does():
+    out = kflex.run_experiment(small(["none"]), time_series=False)
+    (record,) = out["records"]
+    # Table IX, sheath 90 deg, uncompensated: the paper's 9.95 ± 1.9 and 15.1 ± 0.7
+    assert (record["paper_rmse_deg"], record["paper_rmse_std_deg"]) == (9.95, 1.9)
+    assert (record["paper_max_hysteresis_deg"], record["paper_max_hysteresis_std_deg"]) == (15.1, 0.7)
+    assert record["repeats"] == 2 and record["periods"] == 1.0 and record["dt_s"] == 0.01
+    assert record["backgrounds"] == ["colon", "stomach"]
+    # a case the paper did not measure has None
+    grid = small(["none"])
+    grid.cases = [{"table": "IX", "kind": "compensation", "sheath_deg": 45.0, "occlusion": "0%"}]
+    (record,) = kflex.run_experiment(grid, time_series=False)["records"]
+    assert record["paper_rmse_deg"] is None and record["paper_max_hysteresis_deg"] is None

@@ -10,9 +10,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use anyhow::Result;
-use kflex_control::{Case, CaseKind, EstimatorKind, ExperimentGrid, GridRun};
+use kflex_control::{Case, CaseKind, EstimatorKind, ExperimentGrid, GridRun, ResultRow as Row};
 
-use crate::grid::Row;
 use crate::plots::{
     BLACK_LINE, BLUE, BarGroup, BarPair, Bars, Curve, Figure, GREEN, GREY, Lines, ORANGE, PINK,
     Series, VERMILLION,

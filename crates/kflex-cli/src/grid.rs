@@ -6,18 +6,17 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use kflex_control::{
-    CaseKind, EstimatorKind, ExperimentGrid, GridRun, MeanStd, OcclusionCase, Record,
-};
+use kflex_control::{EstimatorKind, ExperimentGrid, GridRun, OcclusionCase};
 use kflex_model::Camera;
 use serde::Serialize;
+
+use kflex_control::ResultRow as Row;
 
 use crate::figures::Collector;
 use crate::output::{
     PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, check_writable, paper_pm, pm,
     write_atomic,
 };
-use crate::paper::{self, Figure};
 use kflex_control::ModelDir;
 
 /// An estimator by its name in scenario files.
@@ -37,89 +36,6 @@ pub fn load(path: &Path) -> Result<ExperimentGrid> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     toml::from_str(&text).with_context(|| format!("parsing the scenario {}", path.display()))
-}
-
-/// One row of `results.json` and `results.csv`. Field names are stable:
-/// later versions extend, never rename.
-#[derive(Debug, Serialize)]
-pub struct Row {
-    pub(crate) kind: &'static str,
-    pub(crate) table: String,
-    pub(crate) estimator: &'static str,
-    pub(crate) sheath_deg: f64,
-    pub(crate) occlusion: &'static str,
-    /// Estimation: the estimate against the true angle; compensation: the
-    /// measured angle against θ_d.
-    pub(crate) rmse_deg: f64,
-    pub(crate) rmse_std_deg: f64,
-    pub(crate) max_hysteresis_deg: Option<f64>,
-    pub(crate) max_hysteresis_std_deg: Option<f64>,
-    pub(crate) error_peak_to_peak_deg: Option<f64>,
-    pub(crate) error_peak_to_peak_std_deg: Option<f64>,
-    pub(crate) peak_loss_deg: Option<f64>,
-    pub(crate) peak_loss_std_deg: Option<f64>,
-    pub(crate) paper_rmse_deg: Option<f64>,
-    pub(crate) paper_rmse_std_deg: Option<f64>,
-    pub(crate) paper_max_hysteresis_deg: Option<f64>,
-    pub(crate) paper_max_hysteresis_std_deg: Option<f64>,
-    pub(crate) repeats: usize,
-    pub(crate) seeds: Vec<u64>,
-    pub(crate) backgrounds: Vec<String>,
-    pub(crate) periods: f64,
-    pub(crate) dt_s: f64,
-}
-
-impl Row {
-    fn of(record: &Record, grid: &ExperimentGrid) -> Result<Row> {
-        let case = &record.case;
-        // the paper's tables V–VII are estimation, VIII–X compensation: a
-        // case of the other kind has no paper figure
-        let estimation_table = matches!(case.table.as_str(), "V" | "VI" | "VII");
-        let (paper_rmse, paper_width) = if estimation_table == (case.kind == CaseKind::Estimation) {
-            paper::figure(
-                &case.table,
-                record.estimator.name(),
-                case.sheath_deg,
-                case.occlusion.name(),
-            )?
-        } else {
-            (None, None)
-        };
-        let h = |i: usize, f: fn(&MeanStd) -> f64| record.hysteresis.as_ref().map(|h| f(&h[i]));
-        Ok(Row {
-            kind: case.kind.name(),
-            table: case.table.clone(),
-            estimator: record.estimator.name(),
-            sheath_deg: case.sheath_deg,
-            occlusion: case.occlusion.name(),
-            rmse_deg: record.rmse_deg.mean,
-            rmse_std_deg: record.rmse_deg.std,
-            max_hysteresis_deg: h(0, |m| m.mean),
-            max_hysteresis_std_deg: h(0, |m| m.std),
-            error_peak_to_peak_deg: h(1, |m| m.mean),
-            error_peak_to_peak_std_deg: h(1, |m| m.std),
-            peak_loss_deg: h(2, |m| m.mean),
-            peak_loss_std_deg: h(2, |m| m.std),
-            paper_rmse_deg: paper_rmse.map(|f| f.mean),
-            paper_rmse_std_deg: paper_rmse.map(|f| f.std),
-            // the paper reports the maximum hysteresis of compensation runs only
-            paper_max_hysteresis_deg: paper_width
-                .filter(|_| case.kind == CaseKind::Compensation)
-                .map(|f: Figure| f.mean),
-            paper_max_hysteresis_std_deg: paper_width
-                .filter(|_| case.kind == CaseKind::Compensation)
-                .map(|f: Figure| f.std),
-            repeats: record.repeats.len(),
-            seeds: record.repeats.iter().map(|r| r.0).collect(),
-            backgrounds: record
-                .repeats
-                .iter()
-                .map(|r| format!("{:?}", r.1).to_lowercase())
-                .collect(),
-            periods: grid.scenario.motion.periods,
-            dt_s: grid.scenario.motion.dt_s,
-        })
-    }
 }
 
 /// How a scenario runs.
@@ -298,7 +214,7 @@ pub fn run(
     let rows = records
         .iter()
         .map(|r| Row::of(r, &grid))
-        .collect::<Result<Vec<_>>>()?;
+        .collect::<kflex_control::Result<Vec<_>>>()?;
     print_tables(&rows);
     if let Some(dir) = out {
         let json = serde_json::to_string_pretty(&Results {

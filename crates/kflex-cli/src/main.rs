@@ -7,7 +7,6 @@ mod figures;
 mod grid;
 mod interrupt;
 mod output;
-mod paper;
 mod plots;
 mod render;
 mod replay;

@@ -9,11 +9,11 @@ use kflex_control::{ControlError, GridRow, OpenLoopGrid, OpenLoopScenario};
 use kflex_model::{AuroraNoise, JointModelKind, PlantConfig};
 use serde::Serialize;
 
+use crate::config;
 use crate::output::{
     PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, check_writable, paper_pm, pm,
     write_atomic,
 };
-use crate::{config, paper};
 
 /// Which joint-angle estimator closes the loop.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
@@ -344,7 +344,8 @@ fn explain(args: &RunArgs, err: ControlError) -> anyhow::Error {
 }
 
 fn record(args: &RunArgs, row: &GridRow) -> Result<Record> {
-    let (paper_rmse, paper_width) = paper::figure("IX", "none", row.sheath_deg, "0%")?;
+    let (paper_rmse, paper_width) =
+        kflex_control::paper_figure("IX", "none", row.sheath_deg, "0%")?;
     Ok(Record {
         estimator: args.estimator,
         sheath_deg: row.sheath_deg,

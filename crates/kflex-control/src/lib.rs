@@ -51,6 +51,10 @@ mod mcap_log;
 mod metrics;
 #[cfg(feature = "estimators")]
 mod models;
+#[cfg(feature = "paper")]
+mod paper;
+#[cfg(feature = "paper")]
+mod results;
 
 pub use closed_loop::{
     AngleEstimator, CameraFrame, CameraTiming, ClosedLoopScenario, ClosedLoopTrace, EstimatorTick,
@@ -81,3 +85,7 @@ pub use mcap_log::{
 pub use metrics::{LOOP_BIN_DEG, MeanStd, error_peak_to_peak, loop_width, peak_loss, rmse};
 #[cfg(feature = "estimators")]
 pub use models::{MODELS_DIR, ModelDir};
+#[cfg(feature = "paper")]
+pub use paper::{PaperFigure, paper_figure};
+#[cfg(feature = "paper")]
+pub use results::ResultRow;

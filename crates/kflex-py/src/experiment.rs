@@ -8,7 +8,7 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use kflex_control::{
-    CaseKind, ControlError, EstimatorKind, ExperimentGrid, GridRun, ModelDir, Record,
+    CaseKind, ControlError, EstimatorKind, ExperimentGrid, GridRun, ModelDir, Record, ResultRow,
 };
 use kflex_model::Camera;
 use pyo3::prelude::*;
@@ -88,7 +88,7 @@ impl RunSeries {
             sheath_deg: run.case.sheath_deg,
             occlusion: run.case.occlusion.name(),
             seed: run.seed,
-            background: format!("{:?}", run.background).to_lowercase(),
+            background: run.background.name().to_owned(),
             estimators: run.estimators.to_vec(),
             time_s: t.time_s.clone(),
             theta_d_deg: t.theta_d_deg.clone(),
@@ -104,30 +104,15 @@ impl RunSeries {
     }
 }
 
-fn record_dict<'py>(py: Python<'py>, r: &Record) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("kind", r.case.kind.name())?;
-    d.set_item("table", &r.case.table)?;
-    d.set_item("estimator", r.estimator.name())?;
-    d.set_item("sheath_deg", r.case.sheath_deg)?;
-    d.set_item("occlusion", r.case.occlusion.name())?;
-    d.set_item("rmse_deg", r.rmse_deg.mean)?;
-    d.set_item("rmse_std_deg", r.rmse_deg.std)?;
-    let names = ["max_hysteresis", "error_peak_to_peak", "peak_loss"];
-    for (i, name) in names.iter().enumerate() {
-        let h = r.hysteresis.map(|h| h[i]);
-        d.set_item(format!("{name}_deg"), h.map(|m| m.mean))?;
-        d.set_item(format!("{name}_std_deg"), h.map(|m| m.std))?;
-    }
-    d.set_item("seeds", r.repeats.iter().map(|x| x.0).collect::<Vec<_>>())?;
-    d.set_item(
-        "backgrounds",
-        r.repeats
-            .iter()
-            .map(|x| format!("{:?}", x.1).to_lowercase())
-            .collect::<Vec<_>>(),
-    )?;
-    Ok(d)
+/// A record as `results.json` has it (kflex-control's `ResultRow`: the
+/// paper's figures beside ours).
+fn record_dict<'py>(
+    py: Python<'py>,
+    r: &Record,
+    grid: &ExperimentGrid,
+) -> Result<Bound<'py, PyAny>> {
+    let row = ResultRow::of(r, grid)?;
+    crate::value::to_py(py, &crate::value::to_value(&row)?).map_err(Error::Py)
 }
 
 fn run_dict(py: Python<'_>, run: RunSeries) -> PyResult<Bound<'_, PyDict>> {
@@ -171,7 +156,10 @@ fn run_dict(py: Python<'_>, run: RunSeries) -> PyResult<Bound<'_, PyDict>> {
 /// repeats (as `kflex-cli run --scenario`'s `results.json`: `kind`,
 /// `table`, `estimator`, `sheath_deg`, `occlusion`, `rmse_deg`,
 /// `rmse_std_deg`, the three readings of the maximum hysteresis for
-/// compensation records, else None, `seeds`, `backgrounds`); and with
+/// compensation records, else None, the paper's `paper_rmse_deg`,
+/// `paper_rmse_std_deg`, `paper_max_hysteresis_deg` and
+/// `paper_max_hysteresis_std_deg` where it has them, else None, `repeats`,
+/// `seeds`, `backgrounds`, `periods`, `dt_s`); and with
 /// `time_series`, `runs`, one `dict` per run (`kind`, `table`,
 /// `sheath_deg`, `occlusion`, `seed`, `background`, `estimators`, and
 /// float64 arrays `time_s`, `theta_d_deg`, `theta_c_deg`, `theta_a_deg`,
@@ -273,8 +261,7 @@ pub fn run_experiment<'py>(
     let out = PyDict::new(py);
     let list = PyList::empty(py);
     for r in &records {
-        list.append(record_dict(py, r).map_err(Error::Py)?)
-            .map_err(Error::Py)?;
+        list.append(record_dict(py, r, &grid)?).map_err(Error::Py)?;
     }
     out.set_item("records", list).map_err(Error::Py)?;
     if time_series {

@@ -30,6 +30,17 @@ pub enum Background {
 impl Background {
     /// All kinds, in the paper's order.
     pub const ALL: [Background; 3] = [Background::Colon, Background::Stomach, Background::Larynx];
+
+    /// Its name in scenario files, results and on the command line (what
+    /// [`FromStr`] reads back).
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Background::Colon => "colon",
+            Background::Stomach => "stomach",
+            Background::Larynx => "larynx",
+        }
+    }
 }
 
 impl FromStr for Background {
@@ -439,6 +450,17 @@ fn blob(img: &mut [f32], w: usize, h: usize, c: [f32; 2], t: [f32; 2], axes: [f3
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_backgrounds_name_reads_back_and_is_its_serde_name() {
+        for b in Background::ALL {
+            assert_eq!(b.name().parse::<Background>().unwrap(), b);
+            assert_eq!(
+                serde_json::to_string(&b).unwrap(),
+                format!("\"{}\"", b.name())
+            );
+        }
+    }
 
     fn luma(img: &[f32]) -> Vec<f32> {
         img.chunks_exact(3)

@@ -1,14 +1,24 @@
-//! The seed paper's figures, embedded from `assets/paper_tables.toml` so the
-//! binary stands alone.
+//! The seed paper's figures (Baek et al., RA-L 2020, Tables V–X), embedded
+//! from `assets/paper_tables.toml` so a program stands alone (cargo feature
+//! `paper`).
 
-use anyhow::{Context, Result, anyhow};
+use crate::error::{ControlError, Result};
+
+/// An error of the embedded tables (a test reads every one of them).
+fn bad(what: String) -> ControlError {
+    ControlError::Unavailable {
+        what: format!("the paper's tables (assets/paper_tables.toml): {what}"),
+    }
+}
 
 const TABLES: &str = include_str!("../../../assets/paper_tables.toml");
 
 /// A paper figure: mean and standard deviation over its repeats, deg.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Figure {
+pub struct PaperFigure {
+    /// Mean, deg.
     pub mean: f64,
+    /// Standard deviation, deg.
     pub std: f64,
 }
 
@@ -18,12 +28,15 @@ pub struct Figure {
 /// `None` where the paper has no figure (kflex's own estimators, a bend or an
 /// occlusion it did not measure). The uncompensated plant's figure in
 /// Table VIII is the same for every occlusion (the plant sees no camera).
-pub fn figure(
+///
+/// # Errors
+/// [`ControlError::Unavailable`] where the embedded tables are malformed.
+pub fn paper_figure(
     table: &str,
     estimator: &str,
     sheath_deg: f64,
     occlusion: &str,
-) -> Result<(Option<Figure>, Option<Figure>)> {
+) -> Result<(Option<PaperFigure>, Option<PaperFigure>)> {
     let section = match table {
         "V" => "table5_estimation_occlusion",
         "VI" => "table6_estimation_sheath",
@@ -33,13 +46,11 @@ pub fn figure(
         "X" => "table10_compensation_both",
         _ => return Ok((None, None)),
     };
-    let root: toml::Table = TABLES
-        .parse()
-        .context("parsing the embedded paper tables")?;
+    let root: toml::Table = TABLES.parse().map_err(|e| bad(format!("{e}")))?;
     let t = root
         .get(section)
         .and_then(|v| v.as_table())
-        .ok_or_else(|| anyhow!("paper tables lack {section}"))?;
+        .ok_or_else(|| bad(format!("no {section}")))?;
     // the column of the case: by occlusion, by bend, or by "occlusion, bend"
     let column = if let Some(names) = t.get("occlusion").and_then(|v| v.as_array()) {
         (sheath_deg == 0.0)
@@ -58,7 +69,7 @@ pub fn figure(
     let Some(column) = column else {
         return Ok((None, None));
     };
-    let pick = |key: &str| -> Result<Option<Figure>> {
+    let pick = |key: &str| -> Result<Option<PaperFigure>> {
         let Some(v) = t.get(key).and_then(|v| v.as_array()) else {
             return Ok(None);
         };
@@ -66,14 +77,14 @@ pub fn figure(
         let pair = match numbers(Some(&toml::Value::Array(v.clone()))) {
             Some(single) => single,
             None => numbers(v.get(column))
-                .ok_or_else(|| anyhow!("{section} {key}[{column}] is not [mean, std]"))?,
+                .ok_or_else(|| bad(format!("{section} {key}[{column}] is not [mean, std]")))?,
         };
         match pair.as_slice() {
-            [mean, std] => Ok(Some(Figure {
+            [mean, std] => Ok(Some(PaperFigure {
                 mean: *mean,
                 std: *std,
             })),
-            _ => Err(anyhow!("{section} {key} is not [mean, std]")),
+            _ => Err(bad(format!("{section} {key} is not [mean, std]"))),
         }
     };
     if section.contains("estimation") {
@@ -99,17 +110,20 @@ mod tests {
 
     #[test]
     fn reads_table_ix_none_row() {
-        let (rmse, width) = figure("IX", "none", 270.0, "0%").unwrap();
+        let (rmse, width) = paper_figure("IX", "none", 270.0, "0%").unwrap();
         let (rmse, width) = (rmse.unwrap(), width.unwrap());
         assert_eq!((rmse.mean, rmse.std), (21.9, 1.2));
         assert_eq!((width.mean, width.std), (18.4, 1.5));
-        assert_eq!(figure("IX", "none", 45.0, "0%").unwrap(), (None, None));
+        assert_eq!(
+            paper_figure("IX", "none", 45.0, "0%").unwrap(),
+            (None, None)
+        );
     }
 
     #[test]
     fn reads_every_table_by_case_and_estimator() {
         let f = |t, e, s, o| {
-            let (r, w) = figure(t, e, s, o).unwrap();
+            let (r, w) = paper_figure(t, e, s, o).unwrap();
             (r.map(|f| (f.mean, f.std)), w.map(|f| (f.mean, f.std)))
         };
         assert_eq!(
