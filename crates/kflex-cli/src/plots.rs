@@ -14,6 +14,7 @@ use std::sync::OnceLock;
 use anyhow::{Context, Result, anyhow, bail};
 use image::ImageEncoder;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use crate::output::write_atomic_bytes;
@@ -176,6 +177,22 @@ fn runs<'a>(x: &'a [f64], y: &'a [Option<f64>]) -> impl Iterator<Item = Vec<(f64
     })
 }
 
+/// A chart on f64 axes.
+type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// The series' legend, in the chart's upper left corner.
+fn legend<'a, DB: DrawingBackend + 'a>(chart: &mut Chart<'a, DB>) -> Result<()> {
+    chart
+        .configure_series_labels()
+        .label_font(("sans-serif", 15))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.5))
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()
+        .map_err(err)?;
+    Ok(())
+}
+
 /// Lines of (x, y) curves on shared axes, with a legend.
 pub struct Lines<'a> {
     pub title: String,
@@ -264,15 +281,7 @@ impl Figure for Lines<'_> {
                 }
             }
         }
-        chart
-            .configure_series_labels()
-            .label_font(("sans-serif", 15))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.5))
-            .position(SeriesLabelPosition::UpperLeft)
-            .draw()
-            .map_err(err)?;
-        Ok(())
+        legend(&mut chart)
     }
 }
 
@@ -392,15 +401,7 @@ impl Figure for Bars {
             .legend(|(x, y)| {
                 Rectangle::new([(x, y - 6), (x + 16, y + 6)], GREY.mix(0.35).filled())
             });
-        chart
-            .configure_series_labels()
-            .label_font(("sans-serif", 15))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.5))
-            .position(SeriesLabelPosition::UpperLeft)
-            .draw()
-            .map_err(err)?;
-        Ok(())
+        legend(&mut chart)
     }
 }
 
