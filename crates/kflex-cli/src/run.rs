@@ -73,7 +73,9 @@ pub struct RunArgs {
     /// the file's sheath_deg, joint_model, seed and noise; the run says so.
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
-    /// Write DIR/results.json (with --scenario, DIR/results.csv too).
+    /// Write DIR/results.json (with --scenario also DIR/results.csv and the
+    /// figures in DIR/plots/). The directory is checked for writing before
+    /// anything runs.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Run a grid of the paper's experiments (Tables V–X) from a scenario
