@@ -163,7 +163,7 @@ pub fn run(
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
         indicatif::ProgressStyle::with_template(
-            "  [{elapsed_precise}] {bar:32} {pos}/{len} runs, about {eta} left",
+            "  [{elapsed_precise}] {bar:32} {pos}/{len} cases done (per estimator in the closed loop), about {eta} left",
         )
         .context("the progress bar's template")?,
     );
@@ -193,10 +193,6 @@ pub fn run(
         _ => None,
     };
     let on_run = |run: &GridRun<'_>| {
-        // Ctrl-C: the run that just ended is dropped with the rest
-        if crate::interrupt::requested() {
-            return Err(kflex_control::ControlError::Interrupted);
-        }
         if let Some(f) = &figures {
             f.take(run);
         }
@@ -205,9 +201,13 @@ pub fn run(
             None => Ok(()),
         }
     };
-    let records = grid.run_with(jobs, &make, &progress, &on_run);
+    let records = grid.run_until(jobs, &make, &progress, &on_run, crate::interrupt::flag());
     bar.finish_and_clear();
     let records = records.with_context(|| format!("running the scenario {}", path.display()))?;
+    // a stop asked for after the last run: still no result file
+    if crate::interrupt::requested() {
+        return Err(kflex_control::ControlError::Interrupted.into());
+    }
     if let Some(dir) = &logs {
         println!("wrote the runs' MCAP logs to {}", dir.display());
     }
@@ -231,13 +231,16 @@ pub fn run(
         let path = write_atomic(dir, "results.csv", &csv(&rows))?;
         println!("wrote {}", path.display());
         if let Some(figures) = figures {
+            // the results are written: a figure that fails is a warning
             let plots = dir.join("plots");
-            let written = figures.write(&plots, &rows)?;
-            println!(
-                "wrote {} figures (PNG and SVG) to {}",
-                written.len() / 2,
-                plots.display()
-            );
+            match figures.write(&plots, &rows) {
+                Ok(written) => println!(
+                    "wrote {} figures (PNG and SVG) to {}",
+                    written.len() / 2,
+                    plots.display()
+                ),
+                Err(e) => eprintln!("kflex-cli: warning: the figures: {e:#}"),
+            }
         }
     }
     Ok(())

@@ -8,7 +8,8 @@ use std::sync::{Arc, OnceLock};
 
 use anyhow::{Context, Result};
 
-fn flag() -> &'static Arc<AtomicBool> {
+/// The flag the handlers set (a grid's `run_until` watches it).
+pub fn flag() -> &'static Arc<AtomicBool> {
     static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
     FLAG.get_or_init(|| Arc::new(AtomicBool::new(false)))
 }

@@ -155,25 +155,18 @@ fn range(values: impl Iterator<Item = f64>) -> Option<std::ops::Range<f64>> {
     Some(lo - pad..hi + pad)
 }
 
-/// Unbroken runs of a series' defined points.
+/// Unbroken runs of a series' defined points (both coordinates finite).
 fn runs<'a>(x: &'a [f64], y: &'a [Option<f64>]) -> impl Iterator<Item = Vec<(f64, f64)>> + 'a {
-    let mut i = 0;
+    let point = |(x, y): (&f64, &Option<f64>)| {
+        y.filter(|y| y.is_finite() && x.is_finite())
+            .map(|y| (*x, y))
+    };
+    let mut points = x.iter().zip(y).map(point).peekable();
     std::iter::from_fn(move || {
-        while i < y.len() && y[i].is_none_or(|v| !v.is_finite()) {
-            i += 1;
-        }
-        if i >= y.len() {
-            return None;
-        }
-        let mut run = Vec::new();
-        while i < y.len() {
-            match y[i] {
-                Some(v) if v.is_finite() && x[i].is_finite() => run.push((x[i], v)),
-                _ => break,
-            }
-            i += 1;
-        }
-        Some(run)
+        while points.next_if(Option::is_none).is_some() {}
+        let run: Vec<(f64, f64)> =
+            std::iter::from_fn(|| points.next_if(Option::is_some).flatten()).collect();
+        (!run.is_empty()).then_some(run)
     })
 }
 
@@ -416,6 +409,11 @@ mod tests {
         let pieces: Vec<Vec<(f64, f64)>> = runs(&x, &y).collect();
         assert_eq!(pieces, vec![vec![(1.0, 1.0)], vec![(3.0, 3.0), (4.0, 4.0)]]);
         assert_eq!(runs(&x, &[None; 6]).count(), 0);
+        // a point without a finite x breaks the run too; a shorter x ends it
+        let x = [0.0, f64::NAN, 2.0];
+        let y = [Some(1.0), Some(2.0), Some(3.0), Some(4.0)];
+        let pieces: Vec<Vec<(f64, f64)>> = runs(&x, &y).collect();
+        assert_eq!(pieces, vec![vec![(0.0, 1.0)], vec![(2.0, 3.0)]]);
     }
 
     #[test]

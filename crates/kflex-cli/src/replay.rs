@@ -75,6 +75,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
             translation_mm: scenario.motion.translation_mm,
         })
         .collect();
+    let times: Vec<f64> = log.states.iter().map(|s| s.time_s).collect();
     let truth: Vec<f64> = log.states.iter().map(|s| s.theta_a_deg).collect();
     let models = ModelDir::new(&args.models);
     let camera = Camera::default();
@@ -111,7 +112,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
     for kind in kinds {
         let mut estimator = models.make(kind, &camera)?;
         let estimate = scenario
-            .replay(estimator.as_mut(), &commands, &log.frames)
+            .replay(estimator.as_mut(), &times, &commands, &log.frames)
             .with_context(|| format!("replaying {}", kind.name()))?;
         match scored(&truth, &estimate) {
             Some((r, n)) => println!("{:>16} | {r:>13.3} {n:>7}", kind.name()),

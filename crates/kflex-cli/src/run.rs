@@ -117,7 +117,8 @@ pub struct RunArgs {
     /// With --mcap: the logs also hold every frame the camera rendered for
     /// the estimators (the image, its 48×48 segmentation and where the
     /// window lies), for Foxglove and `kflex-cli replay`: about 50 MB per
-    /// period of the input and log (estimators without frames log none).
+    /// period of the input in each log, and an estimation run writes a log
+    /// per estimator (estimators without frames log none).
     #[arg(long, requires = "mcap")]
     mcap_frames: bool,
     /// With --scenario and --out: write no figures (by default DIR/plots/

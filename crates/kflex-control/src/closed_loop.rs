@@ -217,7 +217,9 @@ pub struct ClosedLoopScenario {
     /// ([`ClosedLoopTrace::camera_frames`], and so in its MCAP log): some
     /// 200 KB a frame of IBJAE's window, 190 MB a run of five periods at 30
     /// frames/s (its log about 250 MB: the images are base64 in JSON, as
-    /// Foxglove reads them). Off by default.
+    /// Foxglove reads them). A grid keeps one run's frames per thread at a
+    /// time, and an estimation run writes them into each of its estimators'
+    /// logs. Off by default.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub record_frames: bool,
 }
@@ -560,9 +562,10 @@ impl ClosedLoopScenario {
     }
 
     /// Replays `estimator` over a recorded run of this scenario: the
-    /// evaluated ticks' `commands` (tick `j` at `(j + 1)·dt_s`) and the
-    /// `frames` the run rendered, each handed over at the first tick at or
-    /// after its arrival (the newest one where several arrive, as the run
+    /// evaluated ticks' times (`times_s`, s since the start of evaluation:
+    /// `(j + 1)·dt_s` for tick `j` of a kflex run) and `commands`, and the
+    /// `frames` the run rendered (times on the same clock), each handed over
+    /// at the first tick at or after its arrival (the newest one where several arrive, as the run
     /// does). The estimator is reset, then stepped through the pre-roll
     /// first: from rest to θ_d(0) as the run's (exact for an estimation run,
     /// θ_c = θ_d; for a compensated run the pre-roll's commands were the
@@ -576,33 +579,44 @@ impl ClosedLoopScenario {
     pub fn replay(
         &self,
         estimator: &mut dyn AngleEstimator,
+        times_s: &[f64],
         commands: &[Command],
         frames: &[RecordedFrame],
     ) -> Result<Vec<Option<f64>>> {
         let sampler = self.checked()?;
+        if times_s.len() != commands.len() {
+            return Err(crate::ControlError::Worker {
+                message: format!(
+                    "replay: {} tick times for {} commands",
+                    times_s.len(),
+                    commands.len()
+                ),
+            });
+        }
         let motion = &self.motion;
         let dt = motion.dt_s;
-        let images = frames
-            .iter()
-            .map(|f| {
-                let (w, h) = (f.window.width, f.window.height);
-                if f.rgb.len() != 3 * w as usize * h as usize {
-                    return Err(crate::ControlError::Worker {
-                        message: format!(
-                            "a recorded frame of {} bytes does not fill its {w}×{h} window",
-                            f.rgb.len()
-                        ),
-                    });
-                }
-                Ok(Frame {
-                    width: w,
-                    height: h,
-                    rgb: f.rgb.clone(),
-                    instrument: kflex_model::Mask::new(w, h)?,
-                    occluder: kflex_model::Mask::new(w, h)?,
-                })
+        for f in frames {
+            let (w, h) = (f.window.width, f.window.height);
+            if f.rgb.len() as u64 != 3 * u64::from(w) * u64::from(h) {
+                return Err(crate::ControlError::Worker {
+                    message: format!(
+                        "a recorded frame of {} bytes does not fill its {w}×{h} window",
+                        f.rgb.len()
+                    ),
+                });
+            }
+        }
+        // each frame is built when it is handed over
+        let image_of = |f: &RecordedFrame| -> Result<Frame> {
+            let (w, h) = (f.window.width, f.window.height);
+            Ok(Frame {
+                width: w,
+                height: h,
+                rgb: f.rgb.clone(),
+                instrument: kflex_model::Mask::new(w, h)?,
+                occluder: kflex_model::Mask::new(w, h)?,
             })
-            .collect::<Result<Vec<Frame>>>()?;
+        };
         estimator.reset();
         let target = match (self.compensator, commands.first()) {
             (Some(_), Some(c)) => c.theta_c_deg,
@@ -627,16 +641,17 @@ impl ClosedLoopScenario {
         }
         let mut out = Vec::with_capacity(commands.len());
         let mut next = 0;
-        for (j, &command) in commands.iter().enumerate() {
-            let time_s = (pre_roll.len() + j + 1) as f64 * dt;
+        for (&command, &tick_s) in commands.iter().zip(times_s) {
+            let time_s = offset_s + tick_s;
             // the newest frame that has arrived by now
             let mut arrived = None;
             while next < frames.len() && frames[next].arrives_s + offset_s <= time_s + 1e-9 {
                 arrived = Some(next);
                 next += 1;
             }
+            let image = arrived.map(|i| image_of(&frames[i])).transpose()?;
             let frame = arrived.map(|i| CameraFrame {
-                image: Some(&images[i]),
+                image: image.as_ref(),
                 window: Some(frames[i].window),
                 captured_s: frames[i].captured_s + offset_s,
                 command: frames[i].command,

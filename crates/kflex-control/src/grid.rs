@@ -358,6 +358,7 @@ impl ExperimentGrid {
         estimators: &[EstimatorKind],
         make: &MakeEstimator<'_>,
         on_run: &OnRun<'_>,
+        stop: &std::sync::atomic::AtomicBool,
     ) -> Result<Vec<Record>> {
         let mut scenario = self.scenario.clone();
         scenario.frames.occlusion = case.occlusion.occlusion();
@@ -371,6 +372,9 @@ impl ExperimentGrid {
         let (mut rmse, mut metrics) = (vec![Vec::new(); n], Vec::new());
         let mut repeats = Vec::new();
         for r in 0..self.repeats {
+            if stop.load(std::sync::atomic::Ordering::Relaxed) {
+                return Err(ControlError::Interrupted);
+            }
             let seed = self.seed.wrapping_add(u64::from(r));
             let background = self.backgrounds[r as usize % self.backgrounds.len()];
             scenario.frames.background = background;
@@ -481,6 +485,24 @@ impl ExperimentGrid {
         progress: &(dyn Fn(usize, usize) + Sync),
         on_run: &OnRun<'_>,
     ) -> Result<Vec<Record>> {
+        let never = std::sync::atomic::AtomicBool::new(false);
+        self.run_until(jobs, make, progress, on_run, &never)
+    }
+
+    /// [`ExperimentGrid::run_with`], stopping when `stop` is set (e.g. by a
+    /// Ctrl-C handler): the runs in progress finish, no further run starts,
+    /// and the grid returns [`ControlError::Interrupted`].
+    ///
+    /// # Errors
+    /// As [`ExperimentGrid::run_with`]; [`ControlError::Interrupted`].
+    pub fn run_until(
+        &self,
+        jobs: usize,
+        make: &MakeEstimator<'_>,
+        progress: &(dyn Fn(usize, usize) + Sync),
+        on_run: &OnRun<'_>,
+        stop: &std::sync::atomic::AtomicBool,
+    ) -> Result<Vec<Record>> {
         use std::sync::Mutex;
         use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
         self.validate()?;
@@ -521,7 +543,7 @@ impl ExperimentGrid {
                     return;
                 }
                 let (case, estimators) = &pairs[i];
-                let result = self.run_case(case, estimators, make, on_run);
+                let result = self.run_case(case, estimators, make, on_run, stop);
                 failed.fetch_or(result.is_err(), Ordering::Relaxed);
                 if let Ok(mut r) = results.lock() {
                     r[i] = Some(result);
@@ -542,6 +564,9 @@ impl ExperimentGrid {
         let results = results.into_inner().map_err(|_| ControlError::Worker {
             message: "an experiment thread panicked".into(),
         })?;
+        if stop.load(Ordering::Relaxed) {
+            return Err(ControlError::Interrupted);
+        }
         let mut out = Vec::with_capacity(results.len());
         for r in results {
             match r {

@@ -10,9 +10,10 @@
 //!   per frame rendered, at its capture: [`IMAGE_TOPIC`], the window's
 //!   pixels as a `foxglove.RawImage` (`rgb8`, the bytes in base64, as
 //!   Foxglove reads JSON images; [`RAW_IMAGE_SCHEMA`]);
-//!   [`SILHOUETTE_TOPIC`], the segmentation of that window resampled to
-//!   48 × 48 as IBJAE reads it (`mono8`, 255 instrument, an all-zero image
-//!   where the segmentation found none); and [`CAMERA_FRAMES_TOPIC`]
+//!   [`SILHOUETTE_TOPIC`], kflex's segmentation of that whole window
+//!   resampled to 48 × 48 (`mono8`, 255 instrument, an all-zero image where
+//!   it found none; IBJAE segments each of its bands' own regions, which the
+//!   window holds: for one band the two are the same); and [`CAMERA_FRAMES_TOPIC`]
 //!   ([`CAMERA_FRAME_SCHEMA`]): where the window lies in the camera's image,
 //!   when the frame reaches the estimator, the command and the true angle at
 //!   capture. The three share the frame's sequence number.
@@ -162,10 +163,24 @@ fn base64_encode(bytes: &[u8]) -> String {
 #[must_use]
 pub fn base64_decode(text: &str) -> Option<Vec<u8>> {
     let text = text.trim_end_matches('=');
+    // each byte's sextet, 255 for a byte outside the alphabet
+    const VALUE: [u8; 256] = {
+        let mut table = [255u8; 256];
+        let mut i = 0;
+        while i < 64 {
+            table[BASE64[i] as usize] = i as u8;
+            i += 1;
+        }
+        table
+    };
     let mut out = Vec::with_capacity(text.len() * 3 / 4);
     let (mut acc, mut bits) = (0u32, 0u32);
     for c in text.bytes() {
-        let v = BASE64.iter().position(|&b| b == c)? as u32;
+        let v = VALUE[usize::from(c)];
+        if v == 255 {
+            return None;
+        }
+        let v = u32::from(v);
         acc = (acc << 6) | v;
         bits += 6;
         if bits >= 8 {
@@ -460,34 +475,67 @@ pub fn read_mcap(path: &Path) -> Result<RecordedLog> {
             }
         }
     }
-    let mut images: BTreeMap<u32, (u64, RawImageIn)> = BTreeMap::new();
-    let mut infos: BTreeMap<u32, CameraFrameInfo> = BTreeMap::new();
+    // an image and its placement share their log time and sequence number
+    let mut images: BTreeMap<(u64, u32), RawImageIn> = BTreeMap::new();
+    let mut infos: BTreeMap<(u64, u32), CameraFrameInfo> = BTreeMap::new();
+    // the first joint state's log time and time_s: the two clocks' offset
+    let mut first_state: Option<(u64, f64)> = None;
     for message in mcap::MessageStream::new(&bytes).map_err(|e| log_error(path, e))? {
         let m = message.map_err(|e| log_error(path, e))?;
+        let key = (m.log_time, m.sequence);
+        let twice = |topic: &str| {
+            log_error(
+                path,
+                format!(
+                    "two {topic} messages share log time {} ns and sequence {}",
+                    key.0, key.1
+                ),
+            )
+        };
         match m.channel.topic.as_str() {
-            JOINT_STATES_TOPIC => log.states.push(parse(path, JOINT_STATES_TOPIC, &m.data)?),
+            JOINT_STATES_TOPIC => {
+                let state: JointState = parse(path, JOINT_STATES_TOPIC, &m.data)?;
+                if first_state.is_none_or(|(t, _)| m.log_time < t) {
+                    first_state = Some((m.log_time, state.time_s));
+                }
+                log.states.push(state);
+            }
             IMAGE_TOPIC => {
-                images.insert(m.sequence, (m.log_time, parse(path, IMAGE_TOPIC, &m.data)?));
+                if images
+                    .insert(key, parse(path, IMAGE_TOPIC, &m.data)?)
+                    .is_some()
+                {
+                    return Err(twice(IMAGE_TOPIC));
+                }
             }
             CAMERA_FRAMES_TOPIC => {
-                infos.insert(m.sequence, parse(path, CAMERA_FRAMES_TOPIC, &m.data)?);
+                if infos
+                    .insert(key, parse(path, CAMERA_FRAMES_TOPIC, &m.data)?)
+                    .is_some()
+                {
+                    return Err(twice(CAMERA_FRAMES_TOPIC));
+                }
             }
             _ => {}
         }
     }
-    if log.states.is_empty() {
+    let Some((state_log0, state_time0)) = first_state else {
         return Err(log_error(
             path,
             format!("no joint states ({JOINT_STATES_TOPIC})"),
         ));
-    }
+    };
     log.states.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
     let translation = log
         .scenario
         .as_ref()
         .map_or(0.0, |s| s.motion.translation_mm);
-    for (sequence, (log_time, image)) in images {
-        if image.encoding != "rgb8" || image.step.is_some_and(|s| s != 3 * image.width) {
+    for ((log_time, sequence), image) in images {
+        if image.encoding != "rgb8"
+            || image
+                .step
+                .is_some_and(|s| u64::from(s) != 3 * u64::from(image.width))
+        {
             return Err(log_error(
                 path,
                 format!(
@@ -497,7 +545,7 @@ pub fn read_mcap(path: &Path) -> Result<RecordedLog> {
             ));
         }
         let rgb = base64_decode(&image.data)
-            .filter(|d| d.len() == 3 * image.width as usize * image.height as usize)
+            .filter(|d| d.len() as u64 == 3 * u64::from(image.width) * u64::from(image.height))
             .ok_or_else(|| {
                 log_error(
                     path,
@@ -507,8 +555,11 @@ pub fn read_mcap(path: &Path) -> Result<RecordedLog> {
                     ),
                 )
             })?;
-        let time_s = log_time as f64 / 1e9;
-        let frame = match infos.get(&sequence) {
+        // on the joint states' clock
+        // (the difference in integer nanoseconds: an epoch clock's f64 would
+        // lose the microseconds)
+        let time_s = state_time0 + (i128::from(log_time) - i128::from(state_log0)) as f64 / 1e9;
+        let frame = match infos.get(&(log_time, sequence)) {
             Some(info) => RecordedFrame {
                 captured_s: info.captured_s,
                 arrives_s: info.arrives_s,
@@ -602,10 +653,9 @@ fn write_frame<W: std::io::Write + std::io::Seek>(
             .iter()
             .map(|&v| if v != 0 { 255 } else { 0 })
             .collect(),
-        Err(kflex_estimate::EstimateError::NoInstrument { .. }) => {
-            vec![0; side as usize * side as usize]
-        }
-        Err(e) => return Err(Box::new(e)),
+        // nothing found, or a window the segmentation refuses: an empty
+        // silhouette (it is a view for people; the image is what replays)
+        Err(_) => vec![0; side as usize * side as usize],
     };
     let mono = base64_encode(&small);
     let message = serde_json::to_vec(&RawImage {

@@ -335,6 +335,24 @@ fn every_run_is_handed_over_with_each_estimators_estimates() {
         })
         .unwrap_err();
     assert!(err.to_string().contains("a full disk"), "{err}");
+    // a stop asked for: the run in progress ends, no further run starts
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let runs = std::sync::atomic::AtomicUsize::new(0);
+    let err = grid
+        .run_until(
+            1,
+            &make,
+            &|_, _| {},
+            &|_| {
+                runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                stop.store(true, std::sync::atomic::Ordering::Relaxed);
+                Ok(())
+            },
+            &stop,
+        )
+        .unwrap_err();
+    assert_eq!(err, ControlError::Interrupted);
+    assert_eq!(runs.into_inner(), 1);
 }
 
 #[test]

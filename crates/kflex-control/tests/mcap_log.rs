@@ -313,8 +313,9 @@ fn a_replay_over_the_read_log_gives_the_runs_estimates() {
             translation_mm: scenario.motion.translation_mm,
         })
         .collect();
+    let times: Vec<f64> = log.states.iter().map(|s| s.time_s).collect();
     let replayed = scenario
-        .replay(&mut GreenMeter::default(), &commands, &log.frames)
+        .replay(&mut GreenMeter::default(), &times, &commands, &log.frames)
         .unwrap();
     // from the first recorded frame's arrival on, the same estimates (before
     // it the run held a pre-roll frame, which the log does not keep)
@@ -336,12 +337,112 @@ fn a_replay_over_the_read_log_gives_the_runs_estimates() {
     let mut broken = log.frames.clone();
     broken[0].rgb.pop();
     let e = scenario
-        .replay(&mut GreenMeter::default(), &commands, &broken)
+        .replay(&mut GreenMeter::default(), &times, &commands, &broken)
         .unwrap_err();
     assert!(e.to_string().contains("does not fill"), "{e}");
     // a file that is not a log: an error naming it
     std::fs::write(dir.join("not.mcap"), b"hello").unwrap();
     let e = kflex_control::read_mcap(&dir.join("not.mcap")).unwrap_err();
     assert!(e.to_string().contains("not.mcap"), "{e}");
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn a_log_from_elsewhere_is_read_on_its_joint_states_clock() {
+    use kflex_control::{IMAGE_TOPIC, read_mcap};
+    use std::collections::BTreeMap;
+    // a writer with an epoch clock, ticks from t = 0, images without
+    // placements and every sequence number 0
+    let dir = temp_dir("elsewhere");
+    let path = dir.join("other.mcap");
+    let epoch: u64 = 1_700_000_000_000_000_000;
+    let write = |path: &std::path::Path, duplicate: bool| {
+        let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+        let mut out = mcap::Writer::new(file).unwrap();
+        let states = out
+            .add_schema(
+                JOINT_STATE_SCHEMA_NAME,
+                "jsonschema",
+                JOINT_STATE_SCHEMA.as_bytes(),
+            )
+            .unwrap();
+        let states = out
+            .add_channel(states, JOINT_STATES_TOPIC, "json", &BTreeMap::new())
+            .unwrap();
+        let images = out
+            .add_schema("foxglove.RawImage", "jsonschema", b"{}")
+            .unwrap();
+        let images = out
+            .add_channel(images, IMAGE_TOPIC, "json", &BTreeMap::new())
+            .unwrap();
+        let header = |channel_id, ns: u64| mcap::records::MessageHeader {
+            channel_id,
+            sequence: 0,
+            log_time: ns,
+            publish_time: ns,
+        };
+        for k in 0..50u64 {
+            let state = JointState {
+                time_s: k as f64 * 0.01,
+                theta_d_deg: 10.0,
+                theta_d_rate_deg_per_s: 0.0,
+                theta_c_deg: 10.0 + k as f64,
+                theta_a_deg: 9.0,
+                theta_a_measured_deg: 9.0,
+                theta_hat_deg: None,
+            };
+            out.write_to_known_channel(
+                &header(states, epoch + k * 10_000_000),
+                &serde_json::to_vec(&state).unwrap(),
+            )
+            .unwrap();
+        }
+        // two 2×1 images, at 0.105 s and 0.305 s on the writer's clock
+        let mut times = vec![105_000_000u64, 305_000_000];
+        if duplicate {
+            times.push(305_000_000);
+        }
+        for t in times {
+            let image = serde_json::json!({
+                "timestamp": {"sec": 0, "nsec": 0}, "frame_id": "cam", "width": 2, "height": 1,
+                "encoding": "rgb8", "step": 6, "data": "AAECAwQF"
+            });
+            out.write_to_known_channel(
+                &header(images, epoch + t),
+                &serde_json::to_vec(&image).unwrap(),
+            )
+            .unwrap();
+        }
+        out.finish().unwrap();
+    };
+    write(&path, false);
+    let log = read_mcap(&path).unwrap();
+    assert!(log.scenario.is_none());
+    assert_eq!(log.states.len(), 50);
+    assert_eq!(log.frames.len(), 2, "sequence numbers 0 do not overwrite");
+    for (f, t) in log.frames.iter().zip([0.105, 0.305]) {
+        assert!(
+            (f.arrives_s - t).abs() < 1e-9,
+            "{} against {t}",
+            f.arrives_s
+        );
+        assert_eq!(f.window, kflex_model::Roi::whole(2, 1));
+        assert_eq!(f.rgb, [0, 1, 2, 3, 4, 5]);
+        // the command of the tick before it
+        let tick = (t / 0.01).floor();
+        assert!((f.command.theta_c_deg - (10.0 + tick)).abs() < 1e-9);
+        assert!(
+            f.truth_theta_a_deg.is_nan(),
+            "no ground truth in such a log"
+        );
+    }
+    // two images with the same time and sequence: refused, naming them
+    let twice = dir.join("twice.mcap");
+    write(&twice, true);
+    let e = read_mcap(&twice).unwrap_err().to_string();
+    assert!(
+        e.contains("twice.mcap") && e.contains("share log time"),
+        "{e}"
+    );
     std::fs::remove_dir_all(dir).unwrap();
 }

@@ -225,9 +225,6 @@ pub fn run_experiment<'py>(
         let make = |kind| models.make(kind, &camera);
         models.check(&grid.estimators, &camera)?;
         let on_run = |run: &GridRun<'_>| {
-            if stop.load(Ordering::Relaxed) {
-                return Err(ControlError::Interrupted);
-            }
             if time_series && let Ok(mut r) = runs.lock() {
                 r.push(RunSeries::of(run));
             }
@@ -237,15 +234,15 @@ pub fn run_experiment<'py>(
             Ok(())
         };
         std::thread::scope(|scope| {
-            let grid_run = scope.spawn(|| grid.run_with(jobs, &make, &|_, _| {}, &on_run));
+            let grid_run = scope.spawn(|| grid.run_until(jobs, &make, &|_, _| {}, &on_run, &stop));
             while !grid_run.is_finished() {
-                std::thread::sleep(std::time::Duration::from_millis(20));
                 if signal.is_none()
                     && let Err(e) = Python::attach(|py| py.check_signals())
                 {
                     signal = Some(e);
                     stop.store(true, Ordering::Relaxed);
                 }
+                std::thread::sleep(std::time::Duration::from_millis(20));
             }
             grid_run.join().unwrap_or_else(|_| {
                 Err(ControlError::Worker {
