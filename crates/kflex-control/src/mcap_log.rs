@@ -500,22 +500,12 @@ pub fn read_mcap(path: &Path) -> Result<RecordedLog> {
                 }
                 log.states.push(state);
             }
-            IMAGE_TOPIC => {
-                if images
-                    .insert(key, parse(path, IMAGE_TOPIC, &m.data)?)
-                    .is_some()
-                {
-                    return Err(twice(IMAGE_TOPIC));
-                }
-            }
-            CAMERA_FRAMES_TOPIC => {
-                if infos
-                    .insert(key, parse(path, CAMERA_FRAMES_TOPIC, &m.data)?)
-                    .is_some()
-                {
-                    return Err(twice(CAMERA_FRAMES_TOPIC));
-                }
-            }
+            IMAGE_TOPIC => images
+                .insert(key, parse(path, IMAGE_TOPIC, &m.data)?)
+                .map_or(Ok(()), |_| Err(twice(IMAGE_TOPIC)))?,
+            CAMERA_FRAMES_TOPIC => infos
+                .insert(key, parse(path, CAMERA_FRAMES_TOPIC, &m.data)?)
+                .map_or(Ok(()), |_| Err(twice(CAMERA_FRAMES_TOPIC)))?,
             _ => {}
         }
     }
