@@ -173,6 +173,23 @@ fn runs<'a>(x: &'a [f64], y: &'a [Option<f64>]) -> impl Iterator<Item = Vec<(f64
 /// A chart on f64 axes.
 type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
+/// A white page with `title` and f64 axes over `x` and `y`.
+fn chart<'a, DB: DrawingBackend + 'a>(
+    root: &'a DrawingArea<DB, Shift>,
+    title: &str,
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+) -> Result<Chart<'a, DB>> {
+    root.fill(&WHITE).map_err(err)?;
+    ChartBuilder::on(root)
+        .caption(title, ("sans-serif", 22))
+        .margin(16)
+        .x_label_area_size(44)
+        .y_label_area_size(56)
+        .build_cartesian_2d(x, y)
+        .map_err(err)
+}
+
 /// The series' legend, in the chart's upper left corner.
 fn legend<'a, DB: DrawingBackend + 'a>(chart: &mut Chart<'a, DB>) -> Result<()> {
     chart
@@ -229,14 +246,7 @@ impl Figure for Lines<'_> {
         .context("a figure with no data")?;
         // room above the data for the legend
         let y = y.start..y.end + 0.06 * (self.curves.len() + 1) as f64 * (y.end - y.start);
-        root.fill(&WHITE).map_err(err)?;
-        let mut chart = ChartBuilder::on(root)
-            .caption(&self.title, ("sans-serif", 22))
-            .margin(16)
-            .x_label_area_size(44)
-            .y_label_area_size(56)
-            .build_cartesian_2d(x.clone(), y.clone())
-            .map_err(err)?;
+        let mut chart = chart(root, &self.title, x.clone(), y.clone())?;
         chart
             .configure_mesh()
             .x_desc(self.x_desc)
@@ -303,7 +313,6 @@ impl Figure for Bars {
         }
         let n = self.groups.len();
         let m = self.members.len().max(1);
-        root.fill(&WHITE).map_err(err)?;
         let labels: Vec<String> = self.groups.iter().map(|g| g.label.clone()).collect();
         let label_of = move |x: &f64| {
             let k = x.round();
@@ -313,17 +322,13 @@ impl Figure for Bars {
                 String::new()
             }
         };
-        let mut chart = ChartBuilder::on(root)
-            .caption(&self.title, ("sans-serif", 22))
-            .margin(16)
-            .x_label_area_size(44)
-            .y_label_area_size(56)
-            .build_cartesian_2d(
-                -0.5..n as f64 - 0.5,
-                // room above the bars for the legend
-                0.0..top * (1.1 + 0.09 * (self.members.len() + 1) as f64),
-            )
-            .map_err(err)?;
+        let mut chart = chart(
+            root,
+            &self.title,
+            -0.5..n as f64 - 0.5,
+            // room above the bars for the legend
+            0.0..top * (1.1 + 0.09 * (self.members.len() + 1) as f64),
+        )?;
         chart
             .configure_mesh()
             .disable_x_mesh()

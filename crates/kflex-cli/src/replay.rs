@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use kflex_control::{ClosedLoopScenario, EstimatorKind, ModelDir, read_mcap, rmse};
+use kflex_control::{ClosedLoopScenario, EstimatorKind, ModelDir, estimation_rmse_deg, read_mcap};
 use kflex_model::{Camera, Command};
 
 use crate::grid::estimator;
@@ -29,15 +29,13 @@ pub struct ReplayArgs {
     models: PathBuf,
 }
 
-/// RMSE of `estimate` against `truth` over the ticks where both are
-/// defined, and how many those are.
+/// RMSE of `estimate` against `truth` over the ticks that have an
+/// estimate, and how many those are.
 fn scored(truth: &[f64], estimate: &[Option<f64>]) -> Option<(f64, usize)> {
-    let (t, e): (Vec<f64>, Vec<f64>) = truth
-        .iter()
-        .zip(estimate)
-        .filter_map(|(&t, e)| e.filter(|_| t.is_finite()).map(|e| (t, e)))
-        .unzip();
-    rmse(&t, &e).ok().map(|r| (r, t.len()))
+    let ticks = estimate.iter().flatten().count();
+    estimation_rmse_deg(truth, estimate)
+        .ok()
+        .map(|r| (r, ticks))
 }
 
 pub fn replay(args: &ReplayArgs) -> Result<()> {

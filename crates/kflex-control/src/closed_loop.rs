@@ -305,7 +305,7 @@ impl ClosedLoopTrace {
 ///
 /// # Errors
 /// [`crate::ControlError::NotEnoughData`] where no tick has an estimate.
-pub(crate) fn estimation_rmse_deg(truth: &[f64], estimate: &[Option<f64>]) -> Result<f64> {
+pub fn estimation_rmse_deg(truth: &[f64], estimate: &[Option<f64>]) -> Result<f64> {
     let estimate = &estimate[estimate.len().saturating_sub(truth.len())..];
     let truth = &truth[truth.len().saturating_sub(estimate.len())..];
     let (truth, estimate): (Vec<f64>, Vec<f64>) = truth

@@ -58,7 +58,7 @@ mod results;
 
 pub use closed_loop::{
     AngleEstimator, CameraFrame, CameraTiming, ClosedLoopScenario, ClosedLoopTrace, EstimatorTick,
-    FrameCounts, FrameRequest, NoisyTruth, RecordedFrame,
+    FrameCounts, FrameRequest, NoisyTruth, RecordedFrame, estimation_rmse_deg,
 };
 pub use compensator::{
     BacklashTerm, Compensator, CompensatorConfig, CompensatorOutput, Fault, Terms,
