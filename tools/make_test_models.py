@@ -9,6 +9,12 @@ built here with the `onnx` package, with weights from a fixed seed:
   width: input scaling baked in, 2 -> 16 -> 16 -> 1 with LeakyReLU(0.01).
   Beside it `kbjae_test.card.json` (its SHA-256, as a real model card has)
   and `kbjae_test.expected.json`: inputs and numpy's float64 outputs.
+* `kbjae_backlash_test.onnx`: KBJAE's contract with the error a trained
+  KBJAE learns on a backlash-like plant, written down instead of learnt:
+  `theta_error = -(BACKLASH_DEG / 2) * clip(rate / RATE_SCALE, -1, 1)` (the
+  joint lags the command by half the loop's width, behind on the way up and
+  ahead on the way down). The closed-loop tests use it to check what the
+  compensator does with a KBJAE without a trained model.
 * `renamed_test.onnx`: the same network with its input named `x`, for the
   name check.
 * `scnn_test.onnx`: the SCNN's contract (input `silhouette` [N, 1, 48, 48],
@@ -109,6 +115,28 @@ def model(input_name: str, w: list[np.ndarray]) -> onnx.ModelProto:
     return m
 
 
+# the backlash-like model: half its width is the lag, reached from this rate on
+BACKLASH_DEG = 10.0
+RATE_SCALE = 2.0
+
+
+def backlash_model() -> onnx.ModelProto:
+    """`kbjae_backlash_test.onnx` (see the module docs)."""
+    inits = [
+        numpy_helper.from_array(np.array([[0.0], [1.0 / RATE_SCALE]], dtype=np.float32), "pick_rate"),
+        numpy_helper.from_array(np.array([-1.0], dtype=np.float32).reshape(()), "lo"),
+        numpy_helper.from_array(np.array([1.0], dtype=np.float32).reshape(()), "hi"),
+        numpy_helper.from_array(np.array([-BACKLASH_DEG / 2.0], dtype=np.float32), "half_width"),
+    ]
+    nodes = [
+        helper.make_node("MatMul", ["theta_and_rate", "pick_rate"], ["scaled_rate"]),
+        helper.make_node("Clip", ["scaled_rate", "lo", "hi"], ["direction"]),
+        helper.make_node("Mul", ["direction", "half_width"], ["theta_error"]),
+    ]
+    return finish(nodes, "kbjae_backlash_test", [("theta_and_rate", ["batch", 2])],
+                  [("theta_error", ["batch", 1])], inits)
+
+
 def inputs() -> np.ndarray:
     rng = np.random.default_rng(1)
     theta = rng.uniform(-10.0, 60.0, 32)
@@ -181,6 +209,11 @@ def write(out: Path) -> None:
             card = {"model": path.name, "sha256": hashlib.sha256(data).hexdigest(),
                     "made_by": "tools/make_test_models.py (random weights, seed 0; a test model)"}
             (out / f"{name}.card.json").write_text(json.dumps(card, indent=2) + "\n")
+    data = backlash_model().SerializeToString()
+    path = out / "kbjae_backlash_test.onnx"
+    tmp = path.with_suffix(".tmp")
+    tmp.write_bytes(data)
+    tmp.replace(path)
     x = inputs()
     expected = {"inputs": x.tolist(), "theta_error": reference(x, w)[:, 0].tolist()}
     (out / "kbjae_test.expected.json").write_text(json.dumps(expected, indent=1) + "\n")

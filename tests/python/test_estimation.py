@@ -80,6 +80,12 @@ def test_kbjae_steps_differentiate_the_command(kbjae_path: Path) -> None:
     angles = k.run(theta, 0.1)
     assert angles[0] == probe.predict(3.0, 0.0)
     assert angles[3] == probe.predict(4.0, -5.0)
+    # a rate given (the master's, in a compensated loop) is read as given;
+    # the history stays the commands'
+    assert k.step(5.0, 0.1, rate_deg_per_s=-3.0) == probe.predict(5.0, -3.0)
+    with pytest.raises(ValueError, match="rate_deg_per_s"):
+        k.step(6.0, 0.1, rate_deg_per_s=float("inf"))
+    assert k.step(6.0, 0.1) == probe.predict(6.0, 10.0)
 
 
 def test_kbjae_refuses_bad_arrays(kbjae_path: Path) -> None:
@@ -375,6 +381,8 @@ def test_lbhjae_fuses_both_and_a_bad_tick_changes_nothing(models, camera, paper_
         lb.step(float("nan"), 10.0, 0.01)
     with pytest.raises(kflex.RangeError):
         lb.step(20.0, 10.0, -1.0)
+    with pytest.raises(ValueError, match="rate_deg_per_s"):
+        lb.step(20.0, 10.0, 0.01, rate_deg_per_s=float("nan"))
     a, b = lb.step(23.0, 10.0, 0.01), twin.step(23.0, 10.0, 0.01)
     assert (a.fused.theta_hat_deg, a.kbjae_deg) == (b.fused.theta_hat_deg, b.kbjae_deg)
     lb.reset()
@@ -384,3 +392,6 @@ def test_lbhjae_fuses_both_and_a_bad_tick_changes_nothing(models, camera, paper_
         kflex.Lbhjae(models / "kbjae_test.onnx", models / "scnn_test.onnx", [paper_db], "adaptive")
     paper = kflex.Lbhjae(models / "kbjae_test.onnx", models / "scnn_test.onnx", [paper_db], kflex.KalmanParams())
     assert np.isfinite(paper.step(10.0, 10.0, 0.01).fused.theta_hat_deg)
+    # KBJAE inside reads a rate given as given (the master's, closed loop)
+    kb.reset()
+    assert paper.step(11.0, 10.0, 0.01, rate_deg_per_s=-8.0).kbjae_deg == kb.predict(11.0, -8.0)

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use kflex_control::{ClosedLoopScenario, EstimatorKind, ModelDir, estimation_rmse_deg, read_mcap};
-use kflex_model::{Camera, Command};
+use kflex_model::Camera;
 
 use crate::grid::estimator;
 
@@ -65,15 +65,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
             s
         }
     };
-    let commands: Vec<Command> = log
-        .states
-        .iter()
-        .map(|s| Command {
-            theta_c_deg: s.theta_c_deg,
-            translation_mm: scenario.motion.translation_mm,
-        })
-        .collect();
-    let times: Vec<f64> = log.states.iter().map(|s| s.time_s).collect();
+    let ticks = log.replay_ticks(scenario.motion.translation_mm);
     let truth: Vec<f64> = log.states.iter().map(|s| s.theta_a_deg).collect();
     let models = ModelDir::new(&args.models);
     let camera = Camera::default();
@@ -110,7 +102,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
     for kind in kinds {
         let mut estimator = models.make(kind, &camera)?;
         let estimate = scenario
-            .replay(estimator.as_mut(), &times, &commands, &log.frames)
+            .replay(estimator.as_mut(), &ticks, &log.frames)
             .with_context(|| format!("replaying {}", kind.name()))?;
         match scored(&truth, &estimate) {
             Some((r, n)) => println!("{:>16} | {r:>13.3} {n:>7}", kind.name()),

@@ -113,6 +113,19 @@ pub struct CameraFrame<'a> {
     pub truth_theta_a_deg: f64,
 }
 
+/// One recorded tick, as [`ClosedLoopScenario::replay`] hands it to an estimator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReplayTick {
+    /// Time since the start of evaluation, s.
+    pub time_s: f64,
+    /// The command the plant answered.
+    pub command: Command,
+    /// The master's θ_d, deg.
+    pub theta_d_deg: f64,
+    /// Its rate, deg/s.
+    pub theta_d_rate_deg_per_s: f64,
+}
+
 /// One control tick as the estimator sees it.
 #[derive(Debug, Clone, Copy)]
 pub struct EstimatorTick<'a> {
@@ -122,6 +135,11 @@ pub struct EstimatorTick<'a> {
     pub dt_s: f64,
     /// The command the plant answered this tick.
     pub command: Command,
+    /// The master's command θ_d this tick, deg (θ_c where there is no
+    /// compensator; in the pre-roll, the ramp's).
+    pub theta_d_deg: f64,
+    /// Its rate θ_d', deg/s (KBJAE's rate input, see [`crate::estimators`]).
+    pub theta_d_rate_deg_per_s: f64,
     /// The newest frame that arrived this tick, if any.
     pub frame: Option<CameraFrame<'a>>,
 }
@@ -494,9 +512,8 @@ impl ClosedLoopScenario {
         estimator.reset();
         let dt = motion.dt_s;
         let start = sampler.sample(0.0).theta_d_deg;
-        let pre_roll: Vec<f64> = motion
-            .pre_roll(plant.state().command.theta_c_deg, start)
-            .collect();
+        let rest = plant.state().command.theta_c_deg;
+        let pre_roll: Vec<f64> = motion.pre_roll(rest, start).collect();
         let n = motion.evaluated_ticks();
         let mut out = ClosedLoopTrace::default();
         let mut theta_hat = None;
@@ -509,7 +526,10 @@ impl ClosedLoopScenario {
                     let s = sampler.sample((j + 1) as f64 * dt);
                     (s.theta_d_deg, s.theta_d_rate_deg_per_s)
                 }
-                None => (pre_roll[k], 0.0),
+                None => {
+                    let before = k.checked_sub(1).map_or(rest, |i| pre_roll[i]);
+                    (pre_roll[k], (pre_roll[k] - before) / dt)
+                }
             };
             let theta_c = match compensator.as_mut() {
                 Some(c) => {
@@ -544,6 +564,8 @@ impl ClosedLoopScenario {
                 time_s,
                 dt_s: dt,
                 command,
+                theta_d_deg: theta_d,
+                theta_d_rate_deg_per_s: rate,
                 frame,
             })?;
             if let Some(j) = evaluated {
@@ -562,16 +584,17 @@ impl ClosedLoopScenario {
     }
 
     /// Replays `estimator` over a recorded run of this scenario: the
-    /// evaluated ticks' times (`times_s`, s since the start of evaluation:
-    /// `(j + 1)·dt_s` for tick `j` of a kflex run) and `commands`, and the
-    /// `frames` the run rendered (times on the same clock), each handed over
-    /// at the first tick at or after its arrival (the newest one where several arrive, as the run
-    /// does). The estimator is reset, then stepped through the pre-roll
-    /// first: from rest to θ_d(0) as the run's (exact for an estimation run,
-    /// θ_c = θ_d; for a compensated run the pre-roll's commands were the
-    /// compensator's and are not recorded, so the ramp ends at the first
-    /// recorded command instead), without frames, since a log holds only
-    /// the evaluated part's. Its estimate after every evaluated tick.
+    /// evaluated `ticks` (each with its time, s since the start of
+    /// evaluation, `(j + 1)·dt_s` for tick `j` of a kflex run; the command
+    /// the plant answered; the master's θ_d and rate) and the `frames` the
+    /// run rendered (times on the same clock), each handed over at the first
+    /// tick at or after its arrival (the newest one where several arrive, as
+    /// the run does). The estimator is reset, then stepped through the
+    /// pre-roll first: from rest to θ_d(0) as the run's (exact for an
+    /// estimation run, θ_c = θ_d; for a compensated run the pre-roll's
+    /// commands were the compensator's and are not recorded, so the ramp ends
+    /// at the first recorded command instead), without frames, since a log
+    /// holds only the evaluated part's. Its estimate after every evaluated tick.
     ///
     /// # Errors
     /// As [`ClosedLoopScenario::validate`]; the estimator's errors; a frame
@@ -579,20 +602,10 @@ impl ClosedLoopScenario {
     pub fn replay(
         &self,
         estimator: &mut dyn AngleEstimator,
-        times_s: &[f64],
-        commands: &[Command],
+        ticks: &[ReplayTick],
         frames: &[RecordedFrame],
     ) -> Result<Vec<Option<f64>>> {
         let sampler = self.checked()?;
-        if times_s.len() != commands.len() {
-            return Err(crate::ControlError::Worker {
-                message: format!(
-                    "replay: {} tick times for {} commands",
-                    times_s.len(),
-                    commands.len()
-                ),
-            });
-        }
         let motion = &self.motion;
         let dt = motion.dt_s;
         for f in frames {
@@ -618,17 +631,18 @@ impl ClosedLoopScenario {
             })
         };
         estimator.reset();
-        let target = match (self.compensator, commands.first()) {
-            (Some(_), Some(c)) => c.theta_c_deg,
+        let target = match (self.compensator, ticks.first()) {
+            (Some(_), Some(t)) => t.command.theta_c_deg,
             _ => sampler.sample(0.0).theta_d_deg,
         };
-        let translation_mm = commands
+        let translation_mm = ticks
             .first()
-            .map_or(motion.translation_mm, |c| c.translation_mm);
+            .map_or(motion.translation_mm, |t| t.command.translation_mm);
         let pre_roll: Vec<f64> = motion.pre_roll(0.0, target).collect();
         // times since the run's start, pre-roll included, as the run's
         let offset_s = pre_roll.len() as f64 * dt;
         for (k, &theta_c_deg) in pre_roll.iter().enumerate() {
+            let before = k.checked_sub(1).map_or(0.0, |i| pre_roll[i]);
             estimator.step(&EstimatorTick {
                 time_s: (k + 1) as f64 * dt,
                 dt_s: dt,
@@ -636,13 +650,15 @@ impl ClosedLoopScenario {
                     theta_c_deg,
                     translation_mm,
                 },
+                theta_d_deg: theta_c_deg,
+                theta_d_rate_deg_per_s: (theta_c_deg - before) / dt,
                 frame: None,
             })?;
         }
-        let mut out = Vec::with_capacity(commands.len());
+        let mut out = Vec::with_capacity(ticks.len());
         let mut next = 0;
-        for (&command, &tick_s) in commands.iter().zip(times_s) {
-            let time_s = offset_s + tick_s;
+        for tick in ticks {
+            let (command, time_s) = (tick.command, offset_s + tick.time_s);
             // the newest frame that has arrived by now
             let mut arrived = None;
             while next < frames.len() && frames[next].arrives_s + offset_s <= time_s + 1e-9 {
@@ -661,6 +677,8 @@ impl ClosedLoopScenario {
                 time_s,
                 dt_s: dt,
                 command,
+                theta_d_deg: tick.theta_d_deg,
+                theta_d_rate_deg_per_s: tick.theta_d_rate_deg_per_s,
                 frame,
             })?);
         }

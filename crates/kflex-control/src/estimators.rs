@@ -7,6 +7,9 @@
 //! have been taken for a band the estimator no longer reads (its estimate
 //! moved meanwhile); only the bands the frame's window holds are read, and
 //! a frame that holds none is not used.
+//!
+//! KBJAE reads θ_c with the master's rate θ_d': the crate docs say why
+//! ("KBJAE's input in the closed loop").
 
 use kflex_estimate::{Ibjae, Kbjae, Lbhjae, RgbView};
 use kflex_model::{Command, Roi};
@@ -31,16 +34,18 @@ fn request(window: Option<Roi>) -> FrameRequest {
     window.map_or(FrameRequest::None, FrameRequest::Pixels)
 }
 
-/// KBJAE alone: θ̂ = θ_c + the predicted hysteresis error, every tick.
+/// KBJAE alone: θ̂ = θ_c + the predicted hysteresis error θ̃(θ_c, θ_d'),
+/// every tick (the crate docs say why the master's rate).
 impl AngleEstimator for Kbjae {
     fn frame_request(&self, _command: Command) -> FrameRequest {
         FrameRequest::None
     }
 
     fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>> {
-        Ok(Some(Kbjae::step(
+        Ok(Some(Kbjae::step_with_rate(
             self,
             tick.command.theta_c_deg,
+            tick.theta_d_rate_deg_per_s,
             tick.dt_s,
         )?))
     }
@@ -96,7 +101,8 @@ impl AngleEstimator for IbjaeAlone {
     }
 }
 
-/// LBHJAE: KBJAE every tick, IBJAE on each usable frame, fused.
+/// LBHJAE: KBJAE every tick (on θ_c and the master's rate), IBJAE on each
+/// usable frame, fused.
 impl AngleEstimator for Lbhjae {
     fn frame_request(&self, command: Command) -> FrameRequest {
         request(self.frame_window(command.translation_mm))
@@ -116,7 +122,13 @@ impl AngleEstimator for Lbhjae {
                 frame_view = Some(v);
             }
         }
-        let estimate = Lbhjae::step(self, tick.command, tick.dt_s, frame_view.as_ref())?;
+        let estimate = Lbhjae::step_with_rate(
+            self,
+            tick.command,
+            tick.theta_d_rate_deg_per_s,
+            tick.dt_s,
+            frame_view.as_ref(),
+        )?;
         Ok(Some(estimate.fused.theta_hat_deg))
     }
 

@@ -28,9 +28,9 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::closed_loop::{ClosedLoopScenario, ClosedLoopTrace, RecordedFrame};
+use crate::closed_loop::{ClosedLoopScenario, ClosedLoopTrace, RecordedFrame, ReplayTick};
 use crate::error::{ControlError, Result};
-use kflex_model::Roi;
+use kflex_model::{Command, Roi};
 
 /// The joint states' topic.
 pub const JOINT_STATES_TOPIC: &str = "/kflex/joint_states";
@@ -430,6 +430,27 @@ pub struct RecordedLog {
     pub states: Vec<JointState>,
     /// Every frame, in order of arrival.
     pub frames: Vec<RecordedFrame>,
+}
+
+impl RecordedLog {
+    /// The ticks to replay ([`ClosedLoopScenario::replay`]): each joint
+    /// state's time, command (θ_c at `translation_mm`, which the joint
+    /// states do not carry) and θ_d with its rate.
+    #[must_use]
+    pub fn replay_ticks(&self, translation_mm: f64) -> Vec<ReplayTick> {
+        self.states
+            .iter()
+            .map(|s| ReplayTick {
+                time_s: s.time_s,
+                command: Command {
+                    theta_c_deg: s.theta_c_deg,
+                    translation_mm,
+                },
+                theta_d_deg: s.theta_d_deg,
+                theta_d_rate_deg_per_s: s.theta_d_rate_deg_per_s,
+            })
+            .collect()
+    }
 }
 
 /// A message's JSON, or a [`ControlError::Log`] naming `path` and `what`.

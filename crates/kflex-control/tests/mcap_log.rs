@@ -305,17 +305,9 @@ fn a_replay_over_the_read_log_gives_the_runs_estimates() {
         assert!(read.rgb == kept.rgb);
         assert!((read.arrives_s - kept.arrives_s).abs() < 1e-12);
     }
-    let commands: Vec<kflex_model::Command> = log
-        .states
-        .iter()
-        .map(|s| kflex_model::Command {
-            theta_c_deg: s.theta_c_deg,
-            translation_mm: scenario.motion.translation_mm,
-        })
-        .collect();
-    let times: Vec<f64> = log.states.iter().map(|s| s.time_s).collect();
+    let ticks = log.replay_ticks(scenario.motion.translation_mm);
     let replayed = scenario
-        .replay(&mut GreenMeter::default(), &times, &commands, &log.frames)
+        .replay(&mut GreenMeter::default(), &ticks, &log.frames)
         .unwrap();
     // from the first recorded frame's arrival on, the same estimates (before
     // it the run held a pre-roll frame, which the log does not keep)
@@ -337,7 +329,7 @@ fn a_replay_over_the_read_log_gives_the_runs_estimates() {
     let mut broken = log.frames.clone();
     broken[0].rgb.pop();
     let e = scenario
-        .replay(&mut GreenMeter::default(), &times, &commands, &broken)
+        .replay(&mut GreenMeter::default(), &ticks, &broken)
         .unwrap_err();
     assert!(e.to_string().contains("does not fill"), "{e}");
     // a file that is not a log: an error naming it

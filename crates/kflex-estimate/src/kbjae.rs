@@ -108,6 +108,30 @@ impl Kbjae {
         Ok(angle)
     }
 
+    /// One tick with the rate given instead of taken from the commands'
+    /// differences: the command `theta_c_deg` sent this tick and `rate_deg_per_s`,
+    /// e.g. the master's θ_d' (the paper's input is the master's
+    /// {θ_d, θ_d'}; in a compensated loop the compensator's corrections make
+    /// θ_c' wiggle, and a memoryless model reads each wiggle as a reversal).
+    /// The commands' history is kept as [`Kbjae::step`] keeps it, so the two
+    /// may be mixed. Returns `θ_c + θ̃(θ_c, rate)`, deg.
+    ///
+    /// # Errors
+    /// As [`Kbjae::step`], and [`crate::EstimateError::Model`] for a
+    /// non-finite rate (the estimator is then unchanged).
+    pub fn step_with_rate(
+        &mut self,
+        theta_c_deg: f64,
+        rate_deg_per_s: f64,
+        dt_s: f64,
+    ) -> Result<f64> {
+        let mut rate = self.rate;
+        rate.step(theta_c_deg, dt_s)?;
+        let angle = self.predict(theta_c_deg, rate_deg_per_s)?;
+        self.rate = rate;
+        Ok(angle)
+    }
+
     /// KBJAE's angle for a command and its rate, deg (no history kept).
     ///
     /// # Errors

@@ -87,11 +87,37 @@ impl Lbhjae {
         dt_s: f64,
         frame: Option<&RgbView>,
     ) -> Result<LbhjaeEstimate> {
+        self.step_inner(command, None, dt_s, frame)
+    }
+
+    /// [`Lbhjae::step`] with KBJAE's rate input given
+    /// ([`Kbjae::step_with_rate`]): in a compensated loop, the master's θ_d'.
+    ///
+    /// # Errors
+    /// As [`Lbhjae::step`], and a non-finite rate.
+    pub fn step_with_rate(
+        &mut self,
+        command: Command,
+        rate_deg_per_s: f64,
+        dt_s: f64,
+        frame: Option<&RgbView>,
+    ) -> Result<LbhjaeEstimate> {
+        self.step_inner(command, Some(rate_deg_per_s), dt_s, frame)
+    }
+
+    fn step_inner(
+        &mut self,
+        command: Command,
+        rate_deg_per_s: Option<f64>,
+        dt_s: f64,
+        frame: Option<&RgbView>,
+    ) -> Result<LbhjaeEstimate> {
         // every check before anything moves
         crate::fusion::check_inputs(dt_s, &Measurements::default())?;
         for (name, value) in [
             ("theta_c_deg", command.theta_c_deg),
             ("translation_mm", command.translation_mm),
+            ("rate_deg_per_s", rate_deg_per_s.unwrap_or(0.0)),
         ] {
             if !value.is_finite() {
                 return Err(kflex_model::ModelError::NonFinite { name, value }.into());
@@ -106,7 +132,10 @@ impl Lbhjae {
             }
             None => None,
         };
-        let kbjae_deg = self.kbjae.step(command.theta_c_deg, dt_s)?;
+        let kbjae_deg = match rate_deg_per_s {
+            Some(rate) => self.kbjae.step_with_rate(command.theta_c_deg, rate, dt_s)?,
+            None => self.kbjae.step(command.theta_c_deg, dt_s)?,
+        };
         let fused = self.fusion.step(
             dt_s,
             Measurements {

@@ -15,7 +15,8 @@
 //! retrieval over one database per working band, built by
 //! `build_band_database`, each reading with its own uncertainty) and LBHJAE
 //! (`Lbhjae::step(command, dt, frame)`: KBJAE every tick, IBJAE when a
-//! frame arrives, fused by either filter).
+//! frame arrives, fused by either filter; `step_with_rate` gives KBJAE its
+//! rate, in a compensated loop the master's).
 //!
 //! ## Fusion
 //!

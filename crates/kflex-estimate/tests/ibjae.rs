@@ -195,7 +195,20 @@ fn lbhjae_fuses_both_and_runs_without_frames() {
             )
             .is_err()
     );
+    let good = Command {
+        theta_c_deg: 20.0,
+        translation_mm: 10.0,
+    };
+    let e = lbhjae
+        .step_with_rate(good, f64::INFINITY, 0.01, None)
+        .unwrap_err();
+    assert!(e.to_string().contains("rate_deg_per_s"), "{e}");
     assert_eq!(format!("{lbhjae:?}"), before);
+    // KBJAE inside reads the rate given: a frameless tick's KBJAE reading is
+    // its own model's at that rate
+    let mut probe = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    let e = lbhjae.step_with_rate(good, -12.0, 0.01, None).unwrap();
+    assert_eq!(e.kbjae_deg, probe.predict(20.0, -12.0).unwrap());
 }
 
 #[test]

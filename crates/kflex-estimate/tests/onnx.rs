@@ -104,6 +104,26 @@ fn kbjae_differentiates_the_command_stream() {
 }
 
 #[test]
+fn kbjae_reads_a_given_rate_and_keeps_the_command_history() {
+    let mut k = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    let mut probe = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    // the rate given, not the commands' difference
+    assert_eq!(
+        k.step_with_rate(10.0, -7.0, 0.01).unwrap(),
+        probe.predict(10.0, -7.0).unwrap()
+    );
+    // a rejected tick changes nothing: a NaN rate, a bad dt
+    assert!(k.step_with_rate(10.5, f64::NAN, 0.01).is_err());
+    assert!(k.step_with_rate(10.5, 3.0, -1.0).is_err());
+    // the history is the commands', so a difference step after it reads
+    // the rate from 10.0
+    assert_eq!(
+        k.step(10.5, 0.01).unwrap(),
+        probe.predict(10.5, 50.0).unwrap()
+    );
+}
+
+#[test]
 fn a_model_with_other_names_is_refused_naming_both() {
     let e = Kbjae::load(&data("renamed_test.onnx")).unwrap_err();
     let EstimateError::ModelMismatch {

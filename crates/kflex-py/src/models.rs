@@ -46,12 +46,18 @@ impl PyKbjae {
     }
 
     /// One tick: the command `theta_c_deg` sent this tick, `dt_s` after
-    /// the last (its rate a backward difference, 0 on the first tick).
+    /// the last; its rate `rate_deg_per_s` where given (in a compensated
+    /// loop, the master's θ_d', as kflex's closed loop gives it), else a
+    /// backward difference of the commands (0 on the first tick).
     /// Returns KBJAE's angle θ_c + θ̃, deg. Raises `ValueError` for a
-    /// non-finite command, `RangeError` for `dt_s` outside (0, 3600]; the
-    /// estimator is then unchanged.
-    fn step(&mut self, theta_c_deg: f64, dt_s: f64) -> Result<f64> {
-        Ok(self.inner.step(theta_c_deg, dt_s)?)
+    /// non-finite command or rate, `RangeError` for `dt_s` outside
+    /// (0, 3600]; the estimator is then unchanged.
+    #[pyo3(signature = (theta_c_deg, dt_s, rate_deg_per_s = None))]
+    fn step(&mut self, theta_c_deg: f64, dt_s: f64, rate_deg_per_s: Option<f64>) -> Result<f64> {
+        Ok(match rate_deg_per_s {
+            Some(rate) => self.inner.step_with_rate(theta_c_deg, rate, dt_s)?,
+            None => self.inner.step(theta_c_deg, dt_s)?,
+        })
     }
 
     /// `step` for each command of `theta_c_deg` (a one-dimensional array,

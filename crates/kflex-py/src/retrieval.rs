@@ -477,7 +477,12 @@ impl PyLbhjae {
     /// non-finite command, `RangeError` for `dt_s`, `TypeError` or
     /// `RangeError` for a frame the regions do not fit; the estimator is
     /// then unchanged. Runs without the interpreter lock.
-    #[pyo3(signature = (theta_c_deg, translation_mm, dt_s, rgb = None))]
+    ///
+    /// `rate_deg_per_s`: KBJAE's rate input; in a compensated loop, the
+    /// master's θ_d' (what kflex's closed loop gives it: the compensator's
+    /// corrections make θ_c's own rate wiggle). `None`: θ_c's backward
+    /// difference.
+    #[pyo3(signature = (theta_c_deg, translation_mm, dt_s, rgb = None, rate_deg_per_s = None))]
     fn step(
         &mut self,
         py: Python<'_>,
@@ -485,6 +490,7 @@ impl PyLbhjae {
         translation_mm: f64,
         dt_s: f64,
         rgb: Option<&Bound<'_, PyAny>>,
+        rate_deg_per_s: Option<f64>,
     ) -> Result<PyLbhjaeEstimate> {
         let rgb = rgb.filter(|o| !o.is_none()).map(array::rgb).transpose()?;
         let lbhjae = self.inner.get_mut().unwrap_or_else(PoisonError::into_inner);
@@ -497,7 +503,10 @@ impl PyLbhjae {
                 .as_ref()
                 .map(|(data, w, h)| RgbView::packed(data, *w, *h))
                 .transpose()?;
-            lbhjae.step(command, dt_s, view.as_ref())
+            match rate_deg_per_s {
+                Some(rate) => lbhjae.step_with_rate(command, rate, dt_s, view.as_ref()),
+                None => lbhjae.step(command, dt_s, view.as_ref()),
+            }
         })?;
         Ok(PyLbhjaeEstimate {
             fused: Py::new(py, fusion::estimate(py, &e.fused))?,
