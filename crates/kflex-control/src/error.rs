@@ -43,6 +43,20 @@ pub enum ControlError {
     /// A setting of this crate is outside its range.
     #[error(transparent)]
     OutOfRange(#[from] RangeError),
+    /// Two cases of a grid would share their logs' and figures' names
+    /// ([`crate::Case::file_stem`]): the same table, sheath and occlusion.
+    #[error(
+        "cases {first} and {second} (counting from 1) would share the file name {stem}: \
+         give them different tables (a table holds one kind of experiment)"
+    )]
+    SharedCaseName {
+        /// The first case's place in the grid, from 1.
+        first: usize,
+        /// The second's.
+        second: usize,
+        /// The name both would have.
+        stem: String,
+    },
     /// A metric needs data it was not given.
     #[error("{metric} needs {needed}, got {got}")]
     NotEnoughData {

@@ -309,6 +309,8 @@ impl ExperimentGrid {
     /// (`[0, 0.5]`) or a case's `sheath_deg` (`[0, 3600]`);
     /// [`ControlError::NotEnoughData`] for no cases, estimators or
     /// backgrounds, or nothing to run (estimation cases with `none` alone);
+    /// [`ControlError::SharedCaseName`] for two cases that differ in their
+    /// kind alone, or not at all (their logs and figures would share names);
     /// as [`ClosedLoopScenario::validate`].
     pub fn validate(&self) -> Result<()> {
         Bounds::closed(1.0, 1000.0).check("repeats", f64::from(self.repeats))?;
@@ -328,6 +330,18 @@ impl ExperimentGrid {
         }
         for c in &self.cases {
             Bounds::closed(0.0, 3600.0).check("sheath_deg", c.sheath_deg)?;
+        }
+        let mut stems: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
+        for (i, c) in self.cases.iter().enumerate() {
+            let stem = c.file_stem();
+            if let Some(&first) = stems.get(&stem) {
+                return Err(ControlError::SharedCaseName {
+                    first: first + 1,
+                    second: i + 1,
+                    stem,
+                });
+            }
+            stems.insert(stem, i);
         }
         // "none" runs in compensation cases only
         let runnable = self.cases.iter().any(|c| {

@@ -446,3 +446,36 @@ fn estimation_cases_with_only_the_uncompensated_plant_are_nothing_to_run() {
         .is_ok()
     );
 }
+
+#[test]
+fn cases_that_would_share_file_names_are_refused_before_any_run() {
+    let make = |_: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
+        unreachable!("nothing is made before the grid is checked")
+    };
+    let mut grid = small();
+    // the compensation case again, as an estimation case of the same table
+    let mut twin = grid.cases[1].clone();
+    twin.kind = CaseKind::Estimation;
+    grid.cases.push(twin);
+    let err = grid.run(1, &make, &|_, _| {}).unwrap_err();
+    assert!(
+        matches!(&err, ControlError::SharedCaseName { first: 2, second: 3, stem } if stem == "VIII_0deg_0pct"),
+        "{err}"
+    );
+    assert!(err.to_string().contains("different tables"), "{err}");
+    // the same case twice too
+    let mut grid = small();
+    grid.cases.push(grid.cases[0].clone());
+    assert!(matches!(
+        grid.validate(),
+        Err(ControlError::SharedCaseName {
+            first: 1,
+            second: 3,
+            ..
+        })
+    ));
+    // every scenario file names its cases apart
+    for name in ["paper.toml", "table_ix.toml", "table_v.toml"] {
+        scenario_file(name).validate().unwrap();
+    }
+}

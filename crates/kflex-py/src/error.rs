@@ -151,7 +151,9 @@ pub(crate) fn classify(e: &Error) -> Option<Kind> {
         Error::Control(ControlError::Model(m)) => classify_model(m),
         Error::Control(ControlError::OutOfRange(r)) => Kind::Range(*r),
         Error::Control(
-            ControlError::NotEnoughData { .. } | ControlError::NonFiniteSample { .. },
+            ControlError::NotEnoughData { .. }
+            | ControlError::NonFiniteSample { .. }
+            | ControlError::SharedCaseName { .. },
         ) => Kind::Value,
         // a log file that cannot be written
         Error::Control(ControlError::Log { .. }) => Kind::Os(ErrorKind::Other),
