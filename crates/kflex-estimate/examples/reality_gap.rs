@@ -8,7 +8,8 @@
 //! (SCALE multiplies every default tolerance; 1 by default)
 //! (`tools/reality_gap.sh`). Prints the RMSE with the frame's exact mask
 //! (perfect segmentation) and with kflex's segmentation, beside the same
-//! with no gap (nominal frames).
+//! with no gap (nominal frames). `KFLEX_SEGMENT_PARAMS='{"field": value}'` measures
+//! other segmentation thresholds, as in `robustness_table`.
 
 use kflex_estimate::{SegmentParams, Segmenter};
 use kflex_model::{
@@ -61,7 +62,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map_or(f64::NAN, |(t, _)| *t)
     };
     let mut renderer = SceneRenderer::new();
-    let mut segmenter = Segmenter::new(SegmentParams::default())?;
+    let mut segmenter = Segmenter::new(match std::env::var("KFLEX_SEGMENT_PARAMS") {
+        Ok(j) => serde_json::from_str(&j)?,
+        Err(_) => SegmentParams::default(),
+    })?;
     // squared errors: [exact mask, segmented] × [no gap, as built]; segmentation failures counted
     let mut sq = [[0.0f64; 2]; 2];
     let mut counted = [[0usize; 2]; 2];

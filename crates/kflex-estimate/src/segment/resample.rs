@@ -1,14 +1,18 @@
 //! Resampling the region's mask to the `out × out` image IBJAE consumes, by
-//! area vote on the grid of 2×2 cells.
+//! area vote on the grid of 2×2 cells and the pixels the boundary's
+//! refinement changed.
 
 use kflex_model::Mask;
 
 use super::Scratch;
+use super::refine::changed;
 use crate::error::Result;
 
 /// The area vote (an output cell is set where at least half the pixels it
-/// covers are) from the cells (`cols` a row, each the value
-/// of its up to 2×2 pixels of the `rw × rh` region) into `out`.
+/// covers are) from the cells (`cols` a row, each the value of its up to
+/// 2×2 pixels of the `rw × rh` region) with the pixels of `changes`
+/// (index in the region, new value; sorted by index, each differing from
+/// its cell) into `out`.
 pub(super) fn resample_cells(
     s: &mut Scratch,
     cols: usize,
@@ -23,9 +27,12 @@ pub(super) fn resample_cells(
     s.row.resize(n, 0);
     s.column.clear();
     s.column.resize(cols, 0);
+    s.changed.clear();
+    s.changed.resize(rw, 0);
     for oy in 0..n {
         let (y0, y1) = vote_span(oy, rh, n);
-        // pixels set in each cell column over pixel rows y0..y1
+        // pixels set in each cell column over pixel rows y0..y1, and in
+        // each pixel column the changed pixels' difference
         s.column.fill(0);
         for y in y0..y1 {
             let crow = &s.cells[(y / 2) * cols..][..cols];
@@ -33,9 +40,21 @@ pub(super) fn resample_cells(
                 *c += u32::from(v);
             }
         }
+        let first = s.changes.partition_point(|&c| changed(c).0 < y0 * rw);
+        let last = first + s.changes[first..].partition_point(|&c| changed(c).0 < y1 * rw);
+        for &c in &s.changes[first..last] {
+            // each change differs from its cell: set adds a pixel, clear removes one
+            let (i, v) = changed(c);
+            s.changed[i % rw] += if v != 0 { 1 } else { -1 };
+        }
         for (r, &(x0, x1)) in s.row.iter_mut().zip(&s.spans) {
-            let set: u32 = (x0..x1).map(|x| s.column[x / 2]).sum();
-            *r = u8::from(2 * set as usize >= (y1 - y0) * (x1 - x0));
+            let cells: u32 = (x0..x1).map(|x| s.column[x / 2]).sum();
+            let set =
+                i64::from(cells) + s.changed[x0..x1].iter().map(|&d| i64::from(d)).sum::<i64>();
+            *r = u8::from(2 * set >= ((y1 - y0) * (x1 - x0)) as i64);
+        }
+        for &c in &s.changes[first..last] {
+            s.changed[changed(c).0 % rw] = 0;
         }
         out.set_row(oy as u32, &s.row)?;
     }
@@ -76,7 +95,8 @@ fn resample(mask: &[u8], w: usize, h: usize, out: usize) -> Vec<u8> {
 mod tests {
     use super::*;
 
-    /// The area vote from the cells equals the one from the pixel mask.
+    /// The area vote from the cells and the changed pixels equals the one
+    /// from the pixel mask.
     #[test]
     fn resampling_cells_equals_resampling_pixels() {
         for (rw, rh, n) in [
@@ -93,9 +113,18 @@ mod tests {
                     .collect(),
                 ..Scratch::default()
             };
-            let pixels: Vec<u8> = (0..rw * rh)
+            let mut pixels: Vec<u8> = (0..rw * rh)
                 .map(|i| s.cells[(i / rw / 2) * cols + (i % rw) / 2])
                 .collect();
+            // and some pixels changed from their cells' value
+            let flips: Vec<usize> = (0..rw * rh).filter(|i| i % 11 == 3).collect();
+            s.changes = flips
+                .iter()
+                .map(|&i| i as u32 | (u32::from(1 - pixels[i]) << 31))
+                .collect();
+            for &i in &flips {
+                pixels[i] = 1 - pixels[i];
+            }
             let mut out = Mask::new(n as u32, n as u32).unwrap();
             resample_cells(&mut s, cols, rw, rh, &mut out).unwrap();
             assert_eq!(out.data(), resample(&pixels, rw, rh, n), "{rw}×{rh} → {n}");

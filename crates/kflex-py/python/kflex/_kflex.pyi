@@ -382,6 +382,8 @@ class SegmentParams(_Params):
     fill_holes: bool
     min_component: float
     min_component_of_largest: float
+    refine_reach_px: float
+    refine_contrast: float
     min_instrument: float
     out: int
 

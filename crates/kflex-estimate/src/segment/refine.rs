@@ -1,0 +1,239 @@
+//! The boundary to the pixel: the split, merge and threshold decide 2×2
+//! cells, so a boundary they draw is off by up to a pixel, and where the
+//! optics blur the instrument's edge the cells of the blurred rim go to
+//! whichever class their mean colour is nearer (often the steel's: a grey
+//! rim over dark lumen is neutral). Here each pixel of the cells along the
+//! boundary is decided on its own, against the colours a few pixels to
+//! either side of it across the boundary: it takes the class whose colour
+//! it is nearer. A straight step edge blurred by any symmetric kernel
+//! crosses half way between the two at the edge, whatever the blur; the
+//! colours are read on each side of the pixel itself, so tissue that
+//! changes along the instrument (dark lumen on one side, bright mucosa on
+//! the other) is no trouble.
+
+use super::Scratch;
+use super::pyramid::Region2d;
+
+/// Marks in `band` (one byte a cell, `cols × rows`) every cell with a cell
+/// of the other class among its eight neighbours: both cells of every pair
+/// of neighbours that differ.
+fn mark_band(cells: &[u8], cols: usize, rows: usize, band: &mut Vec<u8>, diff: &mut Vec<u8>) {
+    band.clear();
+    band.resize(cols * rows, 0);
+    diff.clear();
+    diff.resize(3 * cols, 0);
+    // each pass writes what one comparison gives, with no two writes to
+    // a byte in one loop, so that the compiler vectorises it
+    for y in 0..rows {
+        let here = &cells[y * cols..(y + 1) * cols];
+        let (d, rest) = diff.split_at_mut(cols);
+        // across: d[x] = here[x] ≠ here[x + 1]
+        for (o, w) in d.iter_mut().zip(here.windows(2)) {
+            *o = w[0] ^ w[1];
+        }
+        let marks = &mut band[y * cols..(y + 1) * cols];
+        marks[0] |= d[0];
+        for (m, w) in marks[1..].iter_mut().zip(d.windows(2)) {
+            *m |= w[0] | w[1];
+        }
+        if y + 1 == rows {
+            break;
+        }
+        let below = &cells[(y + 1) * cols..(y + 2) * cols];
+        let (down, right) = rest.split_at_mut(cols);
+        // down: here[x] ≠ below[x]; down-right: here[x] ≠ below[x + 1];
+        // down-left seen from below: below[x] ≠ here[x + 1]
+        for ((o, &a), &b) in down.iter_mut().zip(here).zip(below) {
+            *o = a ^ b;
+        }
+        for ((o, &a), &b) in right.iter_mut().zip(here).zip(&below[1..]) {
+            *o = a ^ b;
+        }
+        let (top, bottom) = band[y * cols..(y + 2) * cols].split_at_mut(cols);
+        // the cell above marks itself for its down and down-right pairs, and
+        // for the down-left pair of the cell on its right
+        for x in 0..cols {
+            let left_pair = if x > 0 { here[x] ^ below[x - 1] } else { 0 };
+            let dr = if x + 1 < cols { right[x] } else { 0 };
+            top[x] |= down[x] | dr | left_pair;
+            let from_left = if x > 0 { right[x - 1] } else { 0 };
+            let from_right = if x + 1 < cols {
+                here[x + 1] ^ below[x]
+            } else {
+                0
+            };
+            bottom[x] |= down[x] | from_left | from_right;
+        }
+    }
+}
+
+/// The features (brightness `r + g + b`, redness `2r − g − b`, `g − b`:
+/// the split's, a linear map of RGB) summed over the pixels `x0..x1 ×
+/// y0..y1` clipped to the region, and how many pixels that is.
+#[inline]
+fn box_sum(region: &Region2d, [x0, y0, x1, y1]: [isize; 4]) -> ([i64; 3], i64) {
+    let clip = |v: isize, n: usize| v.clamp(0, n as isize) as usize;
+    let (x0, x1) = (clip(x0, region.width), clip(x1, region.width));
+    let (y0, y1) = (clip(y0, region.height), clip(y1, region.height));
+    let (mut r, mut g, mut b) = (0i64, 0i64, 0i64);
+    for yy in y0..y1 {
+        let start = region.first + yy * region.stride;
+        for px in region.rgb[start + 3 * x0..start + 3 * x1].chunks_exact(3) {
+            r += i64::from(px[0]);
+            g += i64::from(px[1]);
+            b += i64::from(px[2]);
+        }
+    }
+    (
+        [r + g + b, 2 * r - g - b, g - b],
+        (x1.saturating_sub(x0) * y1.saturating_sub(y0)) as i64,
+    )
+}
+
+/// Sensor noise (σ on the `[0, 1]` scale) above which a pixel's own
+/// colour is read as the mean of its 3×3 pixels: at 0.03, the noise of one
+/// pixel's features is under a sixth of the least contrast acted on.
+const NOISY: f32 = 0.03;
+
+/// A changed pixel: its index in the region (below 2²⁴) and its class in bit 31.
+#[inline]
+fn change(index: u32, class: u8) -> u32 {
+    index | (u32::from(class) << 31)
+}
+
+/// The index and class of a [`change`].
+#[inline]
+pub(super) fn changed(c: u32) -> (usize, u8) {
+    ((c & 0x7FFF_FFFF) as usize, (c >> 31) as u8)
+}
+
+/// Pixel offsets `reach` px along the unit vector of each Sobel gradient
+/// `(gx, gy)` of a 0/1 mask (each in −4..=4), rounded: index `(gy + 4) · 9 + gx + 4`.
+fn offsets(reach: f32) -> [(isize, isize); 81] {
+    let mut table = [(0, 0); 81];
+    for (i, o) in table.iter_mut().enumerate() {
+        let (gx, gy) = ((i % 9) as f64 - 4.0, (i / 9) as f64 - 4.0);
+        let norm = (gx * gx + gy * gy).sqrt();
+        if norm > 0.0 {
+            let r = f64::from(reach);
+            *o = (
+                (r * gx / norm).round() as isize,
+                (r * gy / norm).round() as isize,
+            );
+        }
+    }
+    table
+}
+
+/// Refines the cells' mask pixel by pixel in the cells that border the
+/// other class, into `s.changes` (the pixels whose class differs from their
+/// cell's, sorted by index). The boundary's normal at a cell is the
+/// gradient of the cells' mask over the 3×3 cells around it (Sobel); the
+/// two colours are the means of the 4×4 pixels `reach` px (rounded to
+/// whole pixels) to either side of the cell's centre along it; a pixel of the cell is instrument where
+/// its colour (the mean of its 3×3 pixels, which cuts the noise to a
+/// third) lies past half way from the outer colour to the inner one. Where
+/// the two points do not lie in the two classes (a thin part, a corner) or
+/// their colours differ by less than `min_contrast` (8-bit units, feature
+/// distance), the cells' decision stands. In integers: no rounding decides
+/// a pixel.
+pub(super) fn refine(
+    s: &mut Scratch,
+    region: &Region2d,
+    cols: usize,
+    rows: usize,
+    reach: f32,
+    min_contrast: f32,
+    sigma: f32,
+) {
+    let (rw, rh) = (region.width, region.height);
+    // a pixel's own colour: the mean of its 3×3 pixels where the frame is
+    // noisy, else its own (a mean rounds a sharp corner off)
+    let own = if sigma > NOISY { 1 } else { 0 };
+    let Scratch {
+        cells,
+        changes,
+        near: band,
+        near_diff,
+        ..
+    } = s;
+    changes.clear();
+    if reach <= 0.0 || cols * rows == 0 {
+        return;
+    }
+    // room for every pixel once per region size: no allocation per frame
+    if changes.capacity() < rw * rh {
+        changes.reserve_exact(rw * rh);
+    }
+    // the cells to refine: a neighbour of the other class
+    mark_band(cells, cols, rows, band, near_diff);
+    let offsets = offsets(reach);
+    let min2 = f64::from(min_contrast).powi(2);
+    let cell = |x: usize, y: usize| -> i32 { i32::from(cells[y * cols + x]) };
+    // the cells' decision at a pixel (the samples read it, not the refined one)
+    let class_at = |x: usize, y: usize| cells[(y / 2) * cols + x / 2];
+    for cy in 0..rows {
+        for cx in 0..cols {
+            if band[cy * cols + cx] == 0 {
+                continue;
+            }
+            // toward the instrument: the mask's gradient (Sobel) over the cells
+            let (l, r) = (cx.saturating_sub(1), (cx + 1).min(cols - 1));
+            let (u, d) = (cy.saturating_sub(1), (cy + 1).min(rows - 1));
+            let gx = cell(r, u) + 2 * cell(r, cy) + cell(r, d)
+                - cell(l, u)
+                - 2 * cell(l, cy)
+                - cell(l, d);
+            let gy = cell(l, d) + 2 * cell(cx, d) + cell(r, d)
+                - cell(l, u)
+                - 2 * cell(cx, u)
+                - cell(r, u);
+            let (ox, oy) = offsets[((gy + 4) * 9 + gx + 4) as usize];
+            if (ox, oy) == (0, 0) {
+                continue;
+            }
+            // the two colours: the 4×4 pixels centred on the cell's centre
+            // (the corner between its pixels) moved by ± the offset, so
+            // that both lie exactly as far from it
+            let box_at = |sign: isize| -> [isize; 4] {
+                let (x, y) = ((2 * cx) as isize + sign * ox, (2 * cy) as isize + sign * oy);
+                [x - 1, y - 1, x + 3, y + 3]
+            };
+            let (inside, outside) = (box_at(1), box_at(-1));
+            // both boxes' centres must lie in the image and in their class
+            let centre_class = |b: [isize; 4]| -> Option<u8> {
+                let (x, y) = (b[0] + 2, b[1] + 2);
+                (x >= 0 && y >= 0 && (x as usize) < rw && (y as usize) < rh)
+                    .then(|| class_at(x as usize, y as usize))
+            };
+            if centre_class(inside) != Some(1) || centre_class(outside) != Some(0) {
+                continue;
+            }
+            let ((s_in, m_in), (s_out, m_out)) =
+                (box_sum(region, inside), box_sum(region, outside));
+            let scale = m_in * m_out;
+            let outer = s_out.map(|v| v * m_in);
+            let delta = [0, 1, 2].map(|k| s_in[k] * m_out - outer[k]);
+            let d2: i64 = delta.iter().map(|v| v * v).sum();
+            if (d2 as f64) < min2 * (scale * scale) as f64 {
+                continue;
+            }
+            for py in 2 * cy..(2 * cy + 2).min(rh) {
+                for px in 2 * cx..(2 * cx + 2).min(rw) {
+                    // past half way: (F/m − T)·Δ ≥ |Δ|²/2, times 2 m N²
+                    let (x, y) = (px as isize, py as isize);
+                    let (f, m) = box_sum(region, [x - own, y - own, x + 1 + own, y + 1 + own]);
+                    let along: i64 = (0..3)
+                        .map(|k| (f[k] * scale - m * outer[k]) * delta[k])
+                        .sum();
+                    let v = u8::from(2 * along >= m * d2);
+                    if v != class_at(px, py) {
+                        changes.push(change((py * rw + px) as u32, v));
+                    }
+                }
+            }
+        }
+    }
+    // a cell row's pixels come in two pixel rows
+    changes.sort_unstable_by_key(|&c| changed(c).0);
+}
