@@ -116,7 +116,9 @@ pub struct SegmentParams {
     pub refine_reach_px: f32,
     /// The boundary's pixels are decided only where the two colours of
     /// [`SegmentParams::refine_reach_px`] differ by at least this (feature
-    /// distance on the `[0, 1]` scale).
+    /// distance on the `[0, 1]` scale, scaled down in a dark region as
+    /// [`SegmentParams::reference_brightness`] says; the largest possible
+    /// distance is √17, so 5 turns the step off).
     pub refine_contrast: f32,
     /// Smallest instrument share of the region of interest that counts as found.
     pub min_instrument: f32,
@@ -148,7 +150,7 @@ impl Default for SegmentParams {
             fill_holes: true,
             min_component: 0.004,
             min_component_of_largest: 0.1,
-            refine_reach_px: 3.0,
+            refine_reach_px: 4.0,
             refine_contrast: 0.2,
             min_instrument: 0.002,
             out: 48,
@@ -344,7 +346,7 @@ struct Scratch {
     component: Vec<usize>,
     row: Vec<u8>,
     column: Vec<u32>,
-    /// Per pixel column: the changed pixels' difference (`resample_cells`).
+    /// Per output column: the changed pixels' difference (`resample_cells`).
     changed: Vec<i32>,
     spans: Vec<(usize, usize)>,
 }
@@ -363,9 +365,10 @@ impl Segmenter {
     /// `grow_brightness` outside `[0, 100]`, `min_relative_value`,
     /// `clip_value` or `saturated_value` outside `[0, 1]`,
     /// `highlight_ratio` outside `[0, 100]`, `highlight_max`,
-    /// `highlight_min_value`, `min_component`, `min_component_of_largest`
-    /// or `min_instrument` outside `[0, 1]`, `out` outside
-    /// `[1, 4096]` px. `min_block` is not checked (blocks stop at 2 px
+    /// `highlight_min_value`, `min_component` or `min_component_of_largest`
+    /// outside `[0, 1]`, `refine_reach_px` outside `[0, 64]`,
+    /// `refine_contrast` outside `[0, 5]`, `min_instrument` outside
+    /// `[0, 1]`, `out` outside `[1, 4096]` px. `min_block` is not checked (blocks stop at 2 px
     /// anyway).
     pub fn new(params: SegmentParams) -> Result<Self> {
         let check = |name, value: f32, lo, hi| Bounds::closed(lo, hi).check(name, f64::from(value));
@@ -400,7 +403,7 @@ impl Segmenter {
             1.0,
         )?;
         check("refine_reach_px", params.refine_reach_px, 0.0, 64.0)?;
-        check("refine_contrast", params.refine_contrast, 0.0, 3.0)?;
+        check("refine_contrast", params.refine_contrast, 0.0, 5.0)?;
         check("min_instrument", params.min_instrument, 0.0, 1.0)?;
         Bounds::closed(1.0, 4096.0).check("out", f64::from(params.out))?;
         Ok(Self {
@@ -534,7 +537,9 @@ impl Segmenter {
             cols,
             rows,
             p.refine_reach_px,
-            p.refine_contrast * 255.0,
+            // in 8-bit units, and like the split's and merge's thresholds
+            // smaller in a darker region (a gain leaves the result alone)
+            p.refine_contrast * 255.0 * scale,
             sigma,
         );
         s.row.clear();
@@ -633,11 +638,13 @@ mod tests {
         let (w, h) = (128usize, 64usize);
         let edge = 81.0;
         let phi = |z: f64| 0.5 * (1.0 + libm_erf(z / std::f64::consts::SQRT_2));
-        let frame = paint(w, h, 0.0, 1, |x, _| {
-            let s = phi((x as f64 + 0.5 - edge) / 2.0);
-            let (tissue, metal) = ([118.0, 88.0, 84.0], [100.0, 101.0, 106.0]);
-            std::array::from_fn(|k| tissue[k] + s * (metal[k] - tissue[k]))
-        });
+        let frame = |gain: f64| {
+            paint(w, h, 0.0, 1, |x, _| {
+                let s = phi((x as f64 + 0.5 - edge) / 2.0);
+                let (tissue, metal) = ([118.0, 88.0, 84.0], [100.0, 101.0, 106.0]);
+                std::array::from_fn(|k| gain * (tissue[k] + s * (metal[k] - tissue[k])))
+            })
+        };
         let roi = Roi {
             x0: 0,
             y0: 0,
@@ -645,29 +652,33 @@ mod tests {
             height: h as u32,
         };
         let truth: Vec<u8> = (0..w).map(|x| u8::from(x >= 81)).collect();
-        let rows = |params: &SegmentParams| -> Vec<Vec<u8>> {
-            let seg = segment(&frame, w as u32, h as u32, roi, params).unwrap();
+        let rows = |params: &SegmentParams, gain: f64| -> Vec<Vec<u8>> {
+            let seg = segment(&frame(gain), w as u32, h as u32, roi, params).unwrap();
             seg.full
                 .data()
                 .chunks_exact(w)
                 .map(<[u8]>::to_vec)
                 .collect()
         };
-        let refined = rows(&SegmentParams::default());
+        let refined = rows(&SegmentParams::default(), 1.0);
         assert!(refined.iter().all(|r| *r == truth), "{:?}", refined[h / 2]);
-        // the cells alone: a pixel off on every row; too little contrast
-        // for the refinement to act on: the same
+        // the same edge under a gain of 0.4: the contrast it needs scales
+        // with the region's brightness, as the split's and merge's do
+        let dark = rows(&SegmentParams::default(), 0.4);
+        assert!(dark.iter().all(|r| *r == truth), "{:?}", dark[h / 2]);
+        // the cells alone: a pixel off on every row; a contrast above any
+        // two colours' (√17): the same
         for params in [
             SegmentParams {
                 refine_reach_px: 0.0,
                 ..SegmentParams::default()
             },
             SegmentParams {
-                refine_contrast: 3.0,
+                refine_contrast: 5.0,
                 ..SegmentParams::default()
             },
         ] {
-            let cells = rows(&params);
+            let cells = rows(&params, 1.0);
             assert!(cells.iter().all(|r| *r != truth));
             assert!(
                 cells

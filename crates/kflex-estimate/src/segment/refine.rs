@@ -3,13 +3,17 @@
 //! optics blur the instrument's edge the cells of the blurred rim go to
 //! whichever class their mean colour is nearer (often the steel's: a grey
 //! rim over dark lumen is neutral). Here each pixel of the cells along the
-//! boundary is decided on its own, against the colours a few pixels to
-//! either side of it across the boundary: it takes the class whose colour
-//! it is nearer. A straight step edge blurred by any symmetric kernel
-//! crosses half way between the two at the edge, whatever the blur; the
-//! colours are read on each side of the pixel itself, so tissue that
-//! changes along the instrument (dark lumen on one side, bright mucosa on
-//! the other) is no trouble.
+//! boundary is decided on its own, against two colours read a few pixels to
+//! either side of its cell across the boundary: it takes the class whose
+//! colour it is nearer. A straight step edge blurred by a symmetric kernel
+//! crosses half way between the two colours at the edge where both are read
+//! clear of the blur; where the blur reaches them, they are read
+//! symmetrically about the cell's centre, not about the edge, and the half
+//! way point may move by a pixel (a vertical edge at an even column under a
+//! blur of 2.5 px lands a column off; at 0.5–2 px every edge lands on its
+//! column). The colours are read beside the cell, so tissue that changes
+//! along the instrument (dark lumen on one side, bright mucosa on the other)
+//! is no trouble.
 
 use super::Scratch;
 use super::pyramid::Region2d;
@@ -21,48 +25,63 @@ fn mark_band(cells: &[u8], cols: usize, rows: usize, band: &mut Vec<u8>, diff: &
     band.clear();
     band.resize(cols * rows, 0);
     diff.clear();
-    diff.resize(3 * cols, 0);
-    // each pass writes what one comparison gives, with no two writes to
-    // a byte in one loop, so that the compiler vectorises it
+    diff.resize(4 * cols, 0);
+    let (across, rest) = diff.split_at_mut(cols);
+    let (down, rest) = rest.split_at_mut(cols);
+    let (down_right, down_left) = rest.split_at_mut(cols);
+    // each loop compares whole rows and writes each byte once, so that the
+    // compiler vectorises it; a pair's last entry (no right neighbour) stays 0
     for y in 0..rows {
         let here = &cells[y * cols..(y + 1) * cols];
-        let (d, rest) = diff.split_at_mut(cols);
-        // across: d[x] = here[x] ≠ here[x + 1]
-        for (o, w) in d.iter_mut().zip(here.windows(2)) {
+        // across[x]: here[x] against here[x + 1]
+        for (o, w) in across.iter_mut().zip(here.windows(2)) {
             *o = w[0] ^ w[1];
         }
         let marks = &mut band[y * cols..(y + 1) * cols];
-        marks[0] |= d[0];
-        for (m, w) in marks[1..].iter_mut().zip(d.windows(2)) {
-            *m |= w[0] | w[1];
+        marks[0] |= across[0];
+        for ((m, &a), &b) in marks[1..]
+            .iter_mut()
+            .zip(&across[1..])
+            .zip(&across[..cols - 1])
+        {
+            *m |= a | b;
         }
         if y + 1 == rows {
             break;
         }
         let below = &cells[(y + 1) * cols..(y + 2) * cols];
-        let (down, right) = rest.split_at_mut(cols);
-        // down: here[x] ≠ below[x]; down-right: here[x] ≠ below[x + 1];
-        // down-left seen from below: below[x] ≠ here[x + 1]
+        // down[x]: here[x] against below[x]; down_right[x]: here[x] against
+        // below[x + 1]; down_left[x]: here[x + 1] against below[x]
         for ((o, &a), &b) in down.iter_mut().zip(here).zip(below) {
             *o = a ^ b;
         }
-        for ((o, &a), &b) in right.iter_mut().zip(here).zip(&below[1..]) {
+        for ((o, &a), &b) in down_right.iter_mut().zip(here).zip(&below[1..]) {
+            *o = a ^ b;
+        }
+        for ((o, &a), &b) in down_left.iter_mut().zip(&here[1..]).zip(below) {
             *o = a ^ b;
         }
         let (top, bottom) = band[y * cols..(y + 2) * cols].split_at_mut(cols);
-        // the cell above marks itself for its down and down-right pairs, and
-        // for the down-left pair of the cell on its right
-        for x in 0..cols {
-            let left_pair = if x > 0 { here[x] ^ below[x - 1] } else { 0 };
-            let dr = if x + 1 < cols { right[x] } else { 0 };
-            top[x] |= down[x] | dr | left_pair;
-            let from_left = if x > 0 { right[x - 1] } else { 0 };
-            let from_right = if x + 1 < cols {
-                here[x + 1] ^ below[x]
-            } else {
-                0
-            };
-            bottom[x] |= down[x] | from_left | from_right;
+        // a cell above: its down and down-right pairs, and its down-left
+        // pair (down_left[x − 1]); a cell below: its up pair, the down-right
+        // pair of the cell above-left (down_right[x − 1]), and down_left[x]
+        top[0] |= down[0] | down_right[0];
+        bottom[0] |= down[0] | down_left[0];
+        for (((t, &d), &dr), &dl) in top[1..]
+            .iter_mut()
+            .zip(&down[1..])
+            .zip(&down_right[1..])
+            .zip(&down_left[..cols - 1])
+        {
+            *t |= d | dr | dl;
+        }
+        for (((b, &d), &dr), &dl) in bottom[1..]
+            .iter_mut()
+            .zip(&down[1..])
+            .zip(&down_right[..cols - 1])
+            .zip(&down_left[1..])
+        {
+            *b |= d | dr | dl;
         }
     }
 }
@@ -90,9 +109,11 @@ fn box_sum(region: &Region2d, [x0, y0, x1, y1]: [isize; 4]) -> ([i64; 3], i64) {
     )
 }
 
-/// Sensor noise (σ on the `[0, 1]` scale) above which a pixel's own
-/// colour is read as the mean of its 3×3 pixels: at 0.03, the noise of one
-/// pixel's features is under a sixth of the least contrast acted on.
+/// Sensor noise (σ on the `[0, 1]` scale, per channel) above which a
+/// pixel's own colour is read as the mean of its 3×3 pixels: at 0.03 the
+/// noise of one pixel's features (√2 σ to √6 σ: 0.04–0.07) is about a third
+/// of the least contrast acted on (0.2), and a mean would round the
+/// instrument's sharp corners off.
 const NOISY: f32 = 0.03;
 
 /// A changed pixel: its index in the region (below 2²⁴) and its class in bit 31.
@@ -105,6 +126,13 @@ fn change(index: u32, class: u8) -> u32 {
 #[inline]
 pub(super) fn changed(c: u32) -> (usize, u8) {
     ((c & 0x7FFF_FFFF) as usize, (c >> 31) as u8)
+}
+
+/// One pixel's features (see [`box_sum`]).
+#[inline]
+fn features(px: &[u8]) -> [i64; 3] {
+    let (r, g, b) = (i64::from(px[0]), i64::from(px[1]), i64::from(px[2]));
+    [r + g + b, 2 * r - g - b, g - b]
 }
 
 /// Pixel offsets `reach` px along the unit vector of each Sobel gradient
@@ -130,9 +158,11 @@ fn offsets(reach: f32) -> [(isize, isize); 81] {
 /// cell's, sorted by index). The boundary's normal at a cell is the
 /// gradient of the cells' mask over the 3×3 cells around it (Sobel); the
 /// two colours are the means of the 4×4 pixels `reach` px (rounded to
-/// whole pixels) to either side of the cell's centre along it; a pixel of the cell is instrument where
-/// its colour (the mean of its 3×3 pixels, which cuts the noise to a
-/// third) lies past half way from the outer colour to the inner one. Where
+/// whole pixels) to either side of the cell's centre along it; a pixel of
+/// the cell is instrument where its colour (its own, or where the frame's
+/// noise `sigma` is above [`NOISY`] the mean of its 3×3 pixels, which cuts
+/// the noise to a third) lies past half way from the outer colour to the
+/// inner one. Where
 /// the two points do not lie in the two classes (a thin part, a corner) or
 /// their colours differ by less than `min_contrast` (8-bit units, feature
 /// distance), the cells' decision stands. In integers: no rounding decides
@@ -173,10 +203,17 @@ pub(super) fn refine(
     // the cells' decision at a pixel (the samples read it, not the refined one)
     let class_at = |x: usize, y: usize| cells[(y / 2) * cols + x / 2];
     for cy in 0..rows {
-        for cx in 0..cols {
-            if band[cy * cols + cx] == 0 {
-                continue;
-            }
+        let row = &band[cy * cols..(cy + 1) * cols];
+        // most of a row is far from the boundary: skip eight cells at a time
+        let marked = row.chunks(8).enumerate().flat_map(|(k, chunk)| {
+            let any = chunk.iter().fold(0u8, |a, &b| a | b) != 0;
+            chunk
+                .iter()
+                .enumerate()
+                .filter(move |&(_, &b)| any && b != 0)
+                .map(move |(j, _)| 8 * k + j)
+        });
+        for cx in marked {
             // toward the instrument: the mask's gradient (Sobel) over the cells
             let (l, r) = (cx.saturating_sub(1), (cx + 1).min(cols - 1));
             let (u, d) = (cy.saturating_sub(1), (cy + 1).min(rows - 1));
@@ -215,14 +252,19 @@ pub(super) fn refine(
             let outer = s_out.map(|v| v * m_in);
             let delta = [0, 1, 2].map(|k| s_in[k] * m_out - outer[k]);
             let d2: i64 = delta.iter().map(|v| v * v).sum();
-            if (d2 as f64) < min2 * (scale * scale) as f64 {
+            if d2 == 0 || (d2 as f64) < min2 * (scale * scale) as f64 {
                 continue;
             }
             for py in 2 * cy..(2 * cy + 2).min(rh) {
                 for px in 2 * cx..(2 * cx + 2).min(rw) {
                     // past half way: (F/m − T)·Δ ≥ |Δ|²/2, times 2 m N²
-                    let (x, y) = (px as isize, py as isize);
-                    let (f, m) = box_sum(region, [x - own, y - own, x + 1 + own, y + 1 + own]);
+                    let (f, m) = if own == 0 {
+                        let i = region.first + py * region.stride + 3 * px;
+                        (features(&region.rgb[i..i + 3]), 1)
+                    } else {
+                        let (x, y) = (px as isize, py as isize);
+                        box_sum(region, [x - 1, y - 1, x + 2, y + 2])
+                    };
                     let along: i64 = (0..3)
                         .map(|k| (f[k] * scale - m * outer[k]) * delta[k])
                         .sum();

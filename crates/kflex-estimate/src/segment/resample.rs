@@ -28,11 +28,10 @@ pub(super) fn resample_cells(
     s.column.clear();
     s.column.resize(cols, 0);
     s.changed.clear();
-    s.changed.resize(rw, 0);
+    s.changed.resize(n, 0);
     for oy in 0..n {
         let (y0, y1) = vote_span(oy, rh, n);
-        // pixels set in each cell column over pixel rows y0..y1, and in
-        // each pixel column the changed pixels' difference
+        // pixels set in each cell column over pixel rows y0..y1
         s.column.fill(0);
         for y in y0..y1 {
             let crow = &s.cells[(y / 2) * cols..][..cols];
@@ -40,21 +39,29 @@ pub(super) fn resample_cells(
                 *c += u32::from(v);
             }
         }
+        // the changed pixels' difference, per output column whose span
+        // holds the pixel (spans are in order; they overlap where the
+        // region is narrower than the output)
+        s.changed.fill(0);
         let first = s.changes.partition_point(|&c| changed(c).0 < y0 * rw);
         let last = first + s.changes[first..].partition_point(|&c| changed(c).0 < y1 * rw);
         for &c in &s.changes[first..last] {
             // each change differs from its cell: set adds a pixel, clear removes one
             let (i, v) = changed(c);
-            s.changed[i % rw] += if v != 0 { 1 } else { -1 };
+            let x = i % rw;
+            let from = s.spans.partition_point(|&(_, x1)| x1 <= x);
+            for (d, _) in s.changed[from..]
+                .iter_mut()
+                .zip(&s.spans[from..])
+                .take_while(|(_, span)| span.0 <= x)
+            {
+                *d += if v != 0 { 1 } else { -1 };
+            }
         }
-        for (r, &(x0, x1)) in s.row.iter_mut().zip(&s.spans) {
+        for ((r, &(x0, x1)), &d) in s.row.iter_mut().zip(&s.spans).zip(&s.changed) {
             let cells: u32 = (x0..x1).map(|x| s.column[x / 2]).sum();
-            let set =
-                i64::from(cells) + s.changed[x0..x1].iter().map(|&d| i64::from(d)).sum::<i64>();
+            let set = i64::from(cells) + i64::from(d);
             *r = u8::from(2 * set >= ((y1 - y0) * (x1 - x0)) as i64);
-        }
-        for &c in &s.changes[first..last] {
-            s.changed[changed(c).0 % rw] = 0;
         }
         out.set_row(oy as u32, &s.row)?;
     }
