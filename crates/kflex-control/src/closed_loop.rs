@@ -639,10 +639,15 @@ impl ClosedLoopScenario {
             .first()
             .map_or(motion.translation_mm, |t| t.command.translation_mm);
         let pre_roll: Vec<f64> = motion.pre_roll(0.0, target).collect();
+        // the master's own ramp, to θ_d(0) (the commands' ends at the first
+        // recorded command where a compensator made them)
+        let master: Vec<f64> = motion
+            .pre_roll(0.0, sampler.sample(0.0).theta_d_deg)
+            .collect();
         // times since the run's start, pre-roll included, as the run's
         let offset_s = pre_roll.len() as f64 * dt;
-        for (k, &theta_c_deg) in pre_roll.iter().enumerate() {
-            let before = k.checked_sub(1).map_or(0.0, |i| pre_roll[i]);
+        for (k, (&theta_c_deg, &theta_d_deg)) in pre_roll.iter().zip(&master).enumerate() {
+            let before = k.checked_sub(1).map_or(0.0, |i| master[i]);
             estimator.step(&EstimatorTick {
                 time_s: (k + 1) as f64 * dt,
                 dt_s: dt,
@@ -650,8 +655,8 @@ impl ClosedLoopScenario {
                     theta_c_deg,
                     translation_mm,
                 },
-                theta_d_deg: theta_c_deg,
-                theta_d_rate_deg_per_s: (theta_c_deg - before) / dt,
+                theta_d_deg,
+                theta_d_rate_deg_per_s: (theta_d_deg - before) / dt,
                 frame: None,
             })?;
         }

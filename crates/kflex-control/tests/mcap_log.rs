@@ -438,3 +438,74 @@ fn a_log_from_elsewhere_is_read_on_its_joint_states_clock() {
     );
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+/// Records the master's θ_d and rate of every tick it is handed.
+#[derive(Default)]
+struct MasterLog {
+    seen: Vec<(f64, f64)>,
+}
+
+impl kflex_control::AngleEstimator for MasterLog {
+    fn frame_request(&self, _command: kflex_model::Command) -> kflex_control::FrameRequest {
+        kflex_control::FrameRequest::None
+    }
+    fn step(
+        &mut self,
+        tick: &kflex_control::EstimatorTick<'_>,
+    ) -> kflex_control::Result<Option<f64>> {
+        self.seen
+            .push((tick.theta_d_deg, tick.theta_d_rate_deg_per_s));
+        Ok(Some(tick.command.theta_c_deg))
+    }
+    fn reset(&mut self) {
+        self.seen.clear();
+    }
+}
+
+#[test]
+fn a_replay_hands_the_estimator_the_masters_command_as_the_run_did() {
+    // compensated, so that θ_c and θ_d differ
+    let scenario = ClosedLoopScenario {
+        motion: OpenLoopScenario {
+            periods: 0.3,
+            pre_roll_s: 0.5,
+            ..OpenLoopScenario::default()
+        },
+        ..ClosedLoopScenario::default()
+    };
+    assert!(scenario.compensator.is_some());
+    let mut plant = Plant::new(PlantConfig::default()).unwrap();
+    let mut run = MasterLog::default();
+    let trace = scenario.run(&mut plant, &mut run, 3).unwrap();
+    let differs = trace
+        .theta_c_deg
+        .iter()
+        .zip(&trace.trace.theta_d_deg)
+        .filter(|(c, d)| (*c - *d).abs() > 0.1)
+        .count();
+    assert!(differs > 10, "{differs}");
+    let path = temp_dir("replay_master").join("run.mcap");
+    trace.write_mcap(&path, &scenario, 3).unwrap();
+    let log = kflex_control::read_mcap(&path).unwrap();
+    let mut replayed = MasterLog::default();
+    scenario
+        .replay(
+            &mut replayed,
+            &log.replay_ticks(scenario.motion.translation_mm),
+            &log.frames,
+        )
+        .unwrap();
+    // every tick, the pre-roll's included: the same θ_d and rate
+    assert_eq!(replayed.seen.len(), run.seen.len());
+    for (k, (r, s)) in replayed.seen.iter().zip(&run.seen).enumerate() {
+        assert!(
+            (r.0 - s.0).abs() < 1e-9 && (r.1 - s.1).abs() < 1e-6,
+            "tick {k}: {r:?} against {s:?}"
+        );
+    }
+    // and the evaluated ticks' rates are the trajectory's
+    let evaluated = &run.seen[run.seen.len() - trace.trace.time_s.len()..];
+    for (s, rate) in evaluated.iter().zip(&trace.trace.theta_d_rate_deg_per_s) {
+        assert_eq!(s.1, *rate);
+    }
+}
