@@ -44,10 +44,13 @@ pub enum ControlError {
     #[error(transparent)]
     OutOfRange(#[from] RangeError),
     /// Two cases of a grid would share their logs' and figures' names
-    /// ([`crate::Case::file_stem`]): the same table, sheath and occlusion.
+    /// ([`crate::Case::file_stem`], compared without case, as some file
+    /// systems do): the same sheath and occlusion, and table names that
+    /// are the same in file names.
     #[error(
-        "cases {first} and {second} (counting from 1) would share the file name {stem}: \
-         give them different tables (a table holds one kind of experiment)"
+        "cases {first} and {second} (counting from 1) would share the file name {stem} \
+         (file names keep letters, digits, - and . of a table's name and ignore case): \
+         give them table names that differ there (a table holds one kind of experiment)"
     )]
     SharedCaseName {
         /// The first case's place in the grid, from 1.

@@ -334,14 +334,14 @@ impl ExperimentGrid {
         let mut stems: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
         for (i, c) in self.cases.iter().enumerate() {
             let stem = c.file_stem();
-            if let Some(&first) = stems.get(&stem) {
+            if let Some(&first) = stems.get(&stem.to_lowercase()) {
                 return Err(ControlError::SharedCaseName {
                     first: first + 1,
                     second: i + 1,
                     stem,
                 });
             }
-            stems.insert(stem, i);
+            stems.insert(stem.to_lowercase(), i);
         }
         // "none" runs in compensation cases only
         let runnable = self.cases.iter().any(|c| {

@@ -462,7 +462,7 @@ fn cases_that_would_share_file_names_are_refused_before_any_run() {
         matches!(&err, ControlError::SharedCaseName { first: 2, second: 3, stem } if stem == "VIII_0deg_0pct"),
         "{err}"
     );
-    assert!(err.to_string().contains("different tables"), "{err}");
+    assert!(err.to_string().contains("table names that differ"), "{err}");
     // the same case twice too
     let mut grid = small();
     grid.cases.push(grid.cases[0].clone());
@@ -474,6 +474,25 @@ fn cases_that_would_share_file_names_are_refused_before_any_run() {
             ..
         })
     ));
+    // names that differ only in case, or in characters file names replace
+    for (table, twin_table) in [("VIII", "viii"), ("VIII a", "VIII_a")] {
+        let mut grid = small();
+        grid.cases[1].table = table.into();
+        let mut twin = grid.cases[1].clone();
+        twin.table = twin_table.into();
+        grid.cases.push(twin);
+        assert!(
+            matches!(
+                grid.validate(),
+                Err(ControlError::SharedCaseName {
+                    first: 2,
+                    second: 3,
+                    ..
+                })
+            ),
+            "{twin_table:?}"
+        );
+    }
     // every scenario file names its cases apart
     for name in ["paper.toml", "table_ix.toml", "table_v.toml"] {
         scenario_file(name).validate().unwrap();
