@@ -115,6 +115,10 @@ def test_ctrl_c_stops_a_running_grid_with_keyboard_interrupt():
         estimators=["none"],
         repeats=750,
     )
+    # Python's own Ctrl-C handler: a process started in the background by a
+    # shell without job control (as `make test &` is) inherits SIGINT
+    # ignored, and Python then installs no handler
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))
     start = time.monotonic()
     timer.start()
@@ -123,6 +127,7 @@ def test_ctrl_c_stops_a_running_grid_with_keyboard_interrupt():
             kflex.run_experiment(grid, time_series=False)
     finally:
         timer.cancel()
+        signal.signal(signal.SIGINT, previous)
     # the runs in progress finish (a few ms each), nothing after them starts
     assert time.monotonic() - start < 5.0
 
