@@ -601,3 +601,38 @@ fn parts_much_smaller_than_the_instrument_are_dropped() {
         "the speck kept"
     );
 }
+
+#[test]
+fn a_region_with_a_side_past_a_masks_is_refused_before_any_work() {
+    // one row 16,385 px long: within the pixel limit, past a mask's side
+    let (w, h) = (kflex_model::MAX_IMAGE_SIDE + 1, 1);
+    let rgb = vec![120u8; 3 * w as usize];
+    let roi = Roi {
+        x0: 0,
+        y0: 0,
+        width: w,
+        height: h,
+    };
+    let e = segment(&rgb, w, h, roi, &SegmentParams::default()).unwrap_err();
+    assert!(
+        matches!(&e, EstimateError::OutOfRange(r) if r.name == "roi.width"),
+        "{e}"
+    );
+    // the same column, transposed
+    let e = segment(
+        &rgb,
+        h,
+        w,
+        Roi {
+            width: h,
+            height: w,
+            ..roi
+        },
+        &SegmentParams::default(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&e, EstimateError::OutOfRange(r) if r.name == "roi.height"),
+        "{e}"
+    );
+}

@@ -432,8 +432,9 @@ impl Segmenter {
     ///   the axis of `roi` that is empty or reaches past the frame's edge
     ///   (`roi.width`, `roi.height`, `roi.x0 + roi.width`,
     ///   `roi.y0 + roi.height`, as [`Roi::check_within`]);
-    /// * [`EstimateError::OutOfRange`] naming `roi pixels` for a region of more
-    ///   than 2²⁴ pixels;
+    /// * [`EstimateError::OutOfRange`] naming `roi.width` or `roi.height`
+    ///   for a side over [`kflex_model::MAX_IMAGE_SIDE`] (16,384 px), or
+    ///   `roi pixels` for a region of more than 2²⁴ pixels, before any work;
     /// * [`EstimateError::NoInstrument`] when fewer than
     ///   [`SegmentParams::min_instrument`] of the region's pixels (and at least
     ///   one) are instrument.
@@ -477,6 +478,10 @@ impl Segmenter {
         }
         roi.check_within(width, height)?;
         let (rw, rh) = (roi.width as usize, roi.height as usize);
+        // the masks' sides first (the region's masks are images), then the pixels
+        let side = Bounds::closed(1.0, f64::from(kflex_model::MAX_IMAGE_SIDE));
+        side.check("roi.width", f64::from(roi.width))?;
+        side.check("roi.height", f64::from(roi.height))?;
         Bounds::closed(1.0, MAX_ROI_PIXELS as f64).check("roi pixels", roi.area() as f64)?;
         let region = Region2d {
             rgb,
