@@ -9,9 +9,10 @@
 //! crosses half way between the two colours at the edge where both are read
 //! clear of the blur; where the blur reaches them, they are read
 //! symmetrically about the cell's centre, not about the edge, and the half
-//! way point may move by a pixel (a vertical edge at an even column under a
-//! blur of 2.5 px lands a column off; at 0.5–2 px every edge lands on its
-//! column). The colours are read beside the cell, so tissue that changes
+//! way point may move by a pixel (at the default reach of 4 px, vertical
+//! edges at any of five neighbouring columns land on their column under a
+//! Gaussian blur of 0.5–2.5 px; under 3 px, three of the five land a column
+//! off, where the cells alone are off by up to two). The colours are read beside the cell, so tissue that changes
 //! along the instrument (dark lumen on one side, bright mucosa on the other)
 //! is no trouble.
 
