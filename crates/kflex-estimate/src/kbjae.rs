@@ -101,11 +101,7 @@ impl Kbjae {
     /// As [`CommandRate::step`] (the estimator is then unchanged), or
     /// [`crate::EstimateError::Onnx`] when the model fails.
     pub fn step(&mut self, theta_c_deg: f64, dt_s: f64) -> Result<f64> {
-        let mut rate = self.rate;
-        let theta_rate = rate.step(theta_c_deg, dt_s)?;
-        let angle = self.predict(theta_c_deg, theta_rate)?;
-        self.rate = rate;
-        Ok(angle)
+        self.advance(theta_c_deg, None, dt_s)
     }
 
     /// One tick with the rate given instead of taken from the commands'
@@ -125,10 +121,22 @@ impl Kbjae {
         rate_deg_per_s: f64,
         dt_s: f64,
     ) -> Result<f64> {
-        let mut rate = self.rate;
-        rate.step(theta_c_deg, dt_s)?;
-        let angle = self.predict(theta_c_deg, rate_deg_per_s)?;
-        self.rate = rate;
+        self.advance(theta_c_deg, Some(rate_deg_per_s), dt_s)
+    }
+
+    /// [`Kbjae::step_with_rate`] where a rate is given, else [`Kbjae::step`]:
+    /// the commands' history moves either way, and only once every check
+    /// has passed and the model has answered.
+    pub(crate) fn advance(
+        &mut self,
+        theta_c_deg: f64,
+        rate_deg_per_s: Option<f64>,
+        dt_s: f64,
+    ) -> Result<f64> {
+        let mut history = self.rate;
+        let difference = history.step(theta_c_deg, dt_s)?;
+        let angle = self.predict(theta_c_deg, rate_deg_per_s.unwrap_or(difference))?;
+        self.rate = history;
         Ok(angle)
     }
 

@@ -132,10 +132,9 @@ impl Lbhjae {
             }
             None => None,
         };
-        let kbjae_deg = match rate_deg_per_s {
-            Some(rate) => self.kbjae.step_with_rate(command.theta_c_deg, rate, dt_s)?,
-            None => self.kbjae.step(command.theta_c_deg, dt_s)?,
-        };
+        let kbjae_deg = self
+            .kbjae
+            .advance(command.theta_c_deg, rate_deg_per_s, dt_s)?;
         let fused = self.fusion.step(
             dt_s,
             Measurements {

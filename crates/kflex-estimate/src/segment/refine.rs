@@ -12,9 +12,9 @@
 //! way point may move by a pixel (at the default reach of 4 px, vertical
 //! edges at any of five neighbouring columns land on their column under a
 //! Gaussian blur of 0.5–2.5 px; under 3 px, three of the five land a column
-//! off, where the cells alone are off by up to two). The colours are read beside the cell, so tissue that changes
-//! along the instrument (dark lumen on one side, bright mucosa on the other)
-//! is no trouble.
+//! off, where the cells alone are off by up to two). The colours are read
+//! beside the cell, so tissue that changes along the instrument (dark lumen
+//! on one side, bright mucosa on the other) is no trouble.
 
 use super::Scratch;
 use super::pyramid::Region2d;
@@ -95,19 +95,23 @@ fn box_sum(region: &Region2d, [x0, y0, x1, y1]: [isize; 4]) -> ([i64; 3], i64) {
     let clip = |v: isize, n: usize| v.clamp(0, n as isize) as usize;
     let (x0, x1) = (clip(x0, region.width), clip(x1, region.width));
     let (y0, y1) = (clip(y0, region.height), clip(y1, region.height));
-    let (mut r, mut g, mut b) = (0i64, 0i64, 0i64);
+    let mut sum = [0i64; 3];
     for yy in y0..y1 {
         let start = region.first + yy * region.stride;
         for px in region.rgb[start + 3 * x0..start + 3 * x1].chunks_exact(3) {
-            r += i64::from(px[0]);
-            g += i64::from(px[1]);
-            b += i64::from(px[2]);
+            (0..3).for_each(|k| sum[k] += i64::from(px[k]));
         }
     }
     (
-        [r + g + b, 2 * r - g - b, g - b],
+        features(sum),
         (x1.saturating_sub(x0) * y1.saturating_sub(y0)) as i64,
     )
+}
+
+/// The features of a colour (or of a sum of colours) `[r, g, b]`.
+#[inline]
+fn features([r, g, b]: [i64; 3]) -> [i64; 3] {
+    [r + g + b, 2 * r - g - b, g - b]
 }
 
 /// Sensor noise (σ on the `[0, 1]` scale, per channel) above which a
@@ -127,13 +131,6 @@ fn change(index: u32, class: u8) -> u32 {
 #[inline]
 pub(super) fn changed(c: u32) -> (usize, u8) {
     ((c & 0x7FFF_FFFF) as usize, (c >> 31) as u8)
-}
-
-/// One pixel's features (see [`box_sum`]).
-#[inline]
-fn features(px: &[u8]) -> [i64; 3] {
-    let (r, g, b) = (i64::from(px[0]), i64::from(px[1]), i64::from(px[2]));
-    [r + g + b, 2 * r - g - b, g - b]
 }
 
 /// Pixel offsets `reach` px along the unit vector of each Sobel gradient
@@ -163,11 +160,10 @@ fn offsets(reach: f32) -> [(isize, isize); 81] {
 /// the cell is instrument where its colour (its own, or where the frame's
 /// noise `sigma` is above [`NOISY`] the mean of its 3×3 pixels, which cuts
 /// the noise to a third) lies past half way from the outer colour to the
-/// inner one. Where
-/// the two points do not lie in the two classes (a thin part, a corner) or
-/// their colours differ by less than `min_contrast` (8-bit units, feature
-/// distance), the cells' decision stands. In integers: no rounding decides
-/// a pixel.
+/// inner one. Where the two points do not lie in the two classes (a thin
+/// part, a corner) or their colours differ by less than `min_contrast`
+/// (8-bit units, feature distance), the cells' decision stands. In
+/// integers: no rounding decides a pixel.
 pub(super) fn refine(
     s: &mut Scratch,
     region: &Region2d,
@@ -180,7 +176,7 @@ pub(super) fn refine(
     let (rw, rh) = (region.width, region.height);
     // a pixel's own colour: the mean of its 3×3 pixels where the frame is
     // noisy, else its own (a mean rounds a sharp corner off)
-    let own = if sigma > NOISY { 1 } else { 0 };
+    let noisy = sigma > NOISY;
     let Scratch {
         cells,
         changes,
@@ -259,12 +255,13 @@ pub(super) fn refine(
             for py in 2 * cy..(2 * cy + 2).min(rh) {
                 for px in 2 * cx..(2 * cx + 2).min(rw) {
                     // past half way: (F/m − T)·Δ ≥ |Δ|²/2, times 2 m N²
-                    let (f, m) = if own == 0 {
-                        let i = region.first + py * region.stride + 3 * px;
-                        (features(&region.rgb[i..i + 3]), 1)
-                    } else {
+                    let (f, m) = if noisy {
                         let (x, y) = (px as isize, py as isize);
                         box_sum(region, [x - 1, y - 1, x + 2, y + 2])
+                    } else {
+                        let i = region.first + py * region.stride + 3 * px;
+                        let p = &region.rgb[i..i + 3];
+                        (features([0, 1, 2].map(|k| i64::from(p[k]))), 1)
                     };
                     let along: i64 = (0..3)
                         .map(|k| (f[k] * scale - m * outer[k]) * delta[k])
