@@ -185,12 +185,13 @@ impl OpenLoopScenario {
 ///
 /// **Repeats.** Each repeat draws a plant from the nominal one with a
 /// parameter spread ([`kflex_model::PlantConfig::perturbed`]: every physical
-/// parameter, and the tendons' seating) and its own noise seed; both seeds
-/// are recorded. The spread stands in for what changes between repeated runs
-/// on a real robot (friction with lubrication and temperature, re-tensioning,
-/// tendon seating, sheath lay). The default, 15 %, gives a run-to-run RMSE
-/// spread of the order of the paper's (its Table IX ± figures; see
-/// CALIBRATION.md).
+/// parameter, the build's by a third as much as the set-up's, and the
+/// tendons' seating with the drive's homing) and its own noise seed; both
+/// seeds are recorded. The spread stands in for what changes between
+/// repeated runs on a real robot (friction with lubrication and temperature,
+/// re-tensioning, tendon seating, where the drive was zeroed). The default,
+/// 15 %, gives a run-to-run spread of the RMSE and the loop width within a
+/// factor of 3 of the paper's (its Table IX ± figures; see CALIBRATION.md).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct OpenLoopGrid {

@@ -17,6 +17,12 @@ use crate::range::Bounds;
 use crate::transmission::{Seating, SheathParams, TendonSheath, TendonTensions};
 use crate::workspace::{TranslationParams, check_pose};
 
+/// The share of [`PlantConfig::perturbed`]'s spread that the parameters of
+/// the instrument's build (stiffnesses, the drive's play) take: a repeated
+/// experiment sets the same instrument up again, which changes its friction,
+/// tension and sheath lay far more than its gears or its tendons' stiffness.
+pub const BUILD_SHARE: f64 = 1.0 / 3.0;
+
 /// The two degrees of freedom the paper commands.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Command {
@@ -56,7 +62,8 @@ pub struct PlantConfig {
     pub sheath: SheathParams,
     /// Sheath configuration: total bend of the sheath, deg (the paper: 0, 90, 180, 270).
     pub sheath_deg: f64,
-    /// How the tendons sit in their sheaths when the plant starts or resets.
+    /// How the tendons sit in their sheaths when the plant starts or resets,
+    /// and where in its play the drive was homed.
     pub seating: Seating,
     /// Joint mechanics.
     pub joint: JointParams,
@@ -113,16 +120,28 @@ impl PlantConfig {
         Ok(())
     }
 
-    /// A copy drawn around this one for a repeated experiment: every physical
-    /// parameter of the transmission and the joint (friction coefficient,
-    /// wraps, pretension, stiffnesses, backlash, pre-sliding, the sheath's
-    /// path change, the contacts' stiffness) scaled by its own factor `1 + rel_std · N(0, 1)` (clamped
-    /// to `[0.5, 1.5]`): unit-to-unit and day-to-day spread. With
-    /// `rel_std > 0` the tendons also start from their own seating (friction
-    /// states and backlash position drawn uniformly from `[−1, 1]`, see
-    /// [`Seating`]): how the instrument was last moved before the run.
-    /// Deterministic in `seed`. This configuration is checked first, so an
-    /// error names the value as given, not a scaled one.
+    /// A copy drawn around this one for a repeated experiment: the same
+    /// instrument set up again. Every physical parameter of the transmission
+    /// and the joint is scaled by its own factor `1 + share · rel_std · N(0, 1)`
+    /// (clamped to `[0.5, 1.5]`):
+    /// * how the instrument is set up for a run, `share` 1: the friction
+    ///   coefficient (lubrication, temperature, wear-in), the route wrap (how
+    ///   the sheath leaves the drive), the pretension (re-tensioned, creep),
+    ///   the pre-sliding displacement (the surfaces' state);
+    /// * how it was built, `share` [`BUILD_SHARE`]: both tendon stiffnesses,
+    ///   the drive's backlash and its engagement, the sheath's path change
+    ///   (the lumens' clearance), the contacts' stiffness.
+    ///
+    /// With `rel_std > 0` each repeat also starts from its own seating
+    /// (friction states and the drive's homing position drawn uniformly from
+    /// `[−1, 1]`, see [`Seating`]): how the instrument was last moved, and
+    /// where in its play the drive was zeroed, which offsets every command
+    /// all run. Deterministic in `seed`. This configuration is checked
+    /// first, so an error names the value as given, not a scaled one.
+    ///
+    /// The split and the homing are what put the run-to-run spread within a
+    /// factor of 3 of the paper's ± at every sheath angle, for the RMSE and
+    /// the loop width alike (CALIBRATION.md, "Run-to-run variation").
     ///
     /// # Errors
     /// [`ModelError::OutOfRange`] naming `rel_std` when it is outside `[0, 0.5]`
@@ -140,18 +159,22 @@ impl PlantConfig {
             name: "rel_std",
             value: rel_std,
         })?;
-        let mut scale = |x: &mut f64| *x *= (1.0 + normal.sample(&mut rng)).clamp(0.5, 1.5);
+        let mut scale = |x: &mut f64, share: f64| {
+            *x *= (1.0 + share * normal.sample(&mut rng)).clamp(0.5, 1.5);
+        };
         let s = &mut out.sheath;
-        scale(&mut s.friction_coefficient);
-        scale(&mut s.route_wrap_deg);
-        scale(&mut s.pretension_n);
-        scale(&mut s.tendon_stiffness_n_per_mm);
-        scale(&mut s.distal_stiffness_n_per_mm);
-        scale(&mut s.drive_backlash_mm);
-        scale(&mut s.backlash_engagement_mm);
-        scale(&mut s.presliding_mm);
-        scale(&mut s.sheath_path_mm_per_rad);
-        scale(&mut out.joint.contact_stiffness_nmm_per_rad);
+        // how the instrument is set up for a run: the full spread
+        scale(&mut s.friction_coefficient, 1.0);
+        scale(&mut s.route_wrap_deg, 1.0);
+        scale(&mut s.pretension_n, 1.0);
+        scale(&mut s.presliding_mm, 1.0);
+        // how it was built: a third of it
+        scale(&mut s.tendon_stiffness_n_per_mm, BUILD_SHARE);
+        scale(&mut s.distal_stiffness_n_per_mm, BUILD_SHARE);
+        scale(&mut s.drive_backlash_mm, BUILD_SHARE);
+        scale(&mut s.backlash_engagement_mm, BUILD_SHARE);
+        scale(&mut s.sheath_path_mm_per_rad, BUILD_SHARE);
+        scale(&mut out.joint.contact_stiffness_nmm_per_rad, BUILD_SHARE);
         out.sheath.friction_coefficient = out.sheath.friction_coefficient.min(1.0);
         out.sheath.drive_backlash_mm = out.sheath.drive_backlash_mm.min(10.0);
         out.sheath.backlash_engagement_mm = out.sheath.backlash_engagement_mm.min(10.0);
@@ -318,10 +341,10 @@ impl Plant {
         self.joint = joint;
         self.rng = ChaCha8Rng::seed_from_u64(self.config.seed);
         self.theta_before_rad = 0.0;
-        self.backlash.reset(
-            0.0,
-            self.config.seating.backlash * self.config.sheath.drive_backlash_mm,
-        );
+        // homed with the joint straight: the play's output at 0, the motor
+        // where the seating puts it inside the play, and its zero set there
+        let zero = self.drive_zero_mm();
+        self.backlash.reset(zero, -zero);
         let translation = self.config.translation.min_mm;
         self.state = PlantState {
             command: Command {
@@ -336,6 +359,14 @@ impl Plant {
             ..PlantState::default()
         };
         Ok(())
+    }
+
+    /// Where the motor's zero sits inside the drive's play, on the
+    /// differential stroke, mm: the drive was homed with the joint straight,
+    /// which it is for any motor position inside the play, so the zero
+    /// lands where [`Seating::backlash`] says and stays there all run.
+    fn drive_zero_mm(&self) -> f64 {
+        -self.config.seating.backlash * self.config.sheath.drive_backlash_mm
     }
 
     /// Changes the sheath configuration (deg) between ticks, as a surgeon reshaping the endoscope.
@@ -415,7 +446,8 @@ impl Plant {
         // the drive: the command's stroke through the backlash, then both
         // tendons' paths of Eq. 1 for the angle that stroke stands for
         let mut backlash = self.backlash;
-        let stroke = backlash.advance(geometry.differential_stroke_mm(theta_c))?;
+        let stroke =
+            backlash.advance(geometry.differential_stroke_mm(theta_c) + self.drive_zero_mm())?;
         let theta_b = geometry.theta_rad_from_stroke(stroke).unwrap_or(theta_c);
         self.sheath
             .advance(stroke, geometry.common_mode_mm(theta_b))?;

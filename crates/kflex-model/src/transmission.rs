@@ -108,9 +108,15 @@ impl SheathParams {
 /// every element of tendon `a` and `b` (+1: last slid toward the motor, as
 /// after tensioning); the tensions along each tendon then follow the capstan
 /// balance of that state, with the mean stretch of the tendon unchanged, so
-/// the motors and the joint stay where they are. `backlash ∈ [−1, 1]` places
-/// the drive inside its backlash (±1: against one flank). All zero is the
-/// idealised rest state: uniform pretension, no friction mobilised.
+/// the motors and the joint stay where they are. `backlash ∈ [−1, 1]` is
+/// where the drive was homed inside its backlash (±1: against one flank).
+/// The drive is zeroed with the joint straight, and the joint is straight
+/// for every motor position inside the play, so the motor's zero lands
+/// anywhere in it; unlike the friction states, which the first stroke
+/// wipes out, that offset of the motor's zero lasts all run (−1: every
+/// command lands one half-width further along). All zero is the idealised
+/// rest state: uniform pretension, no friction mobilised, the drive homed
+/// at the middle of its play.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Seating {
@@ -118,8 +124,8 @@ pub struct Seating {
     pub friction_a: f64,
     /// Friction state of tendon `b`'s elements, `[−1, 1]`.
     pub friction_b: f64,
-    /// Position inside the drive's backlash, `[−1, 1]` of its half-width
-    /// (used by [`crate::Plant`], which owns the drive).
+    /// Where the drive was homed inside its backlash, `[−1, 1]` of its
+    /// half-width (used by [`crate::Plant`], which owns the drive).
     pub backlash: f64,
 }
 

@@ -1,8 +1,8 @@
 //! Behaviour of the whole plant: joint models agree, determinism, bad input.
 
 use kflex_model::{
-    AuroraNoise, Bounds, Command, JointModelKind, JointParams, ModelError, Plant, PlantConfig,
-    PlantState, RangeError, SheathParams, Trajectory,
+    AuroraNoise, BUILD_SHARE, Bounds, Command, JointModelKind, JointParams, ModelError, Plant,
+    PlantConfig, PlantState, RangeError, Seating, SheathParams, TendonGeometry, Trajectory,
 };
 use proptest::prelude::*;
 
@@ -631,4 +631,73 @@ fn a_perturbed_config_reports_the_value_as_given() {
     // no spread: the nominal plant at rest
     assert_eq!(nominal.perturbed(7, 0.0).unwrap(), nominal);
     Plant::new(p).unwrap();
+}
+
+/// Mean θ_a over the last period of the paper's input on `config`'s plant.
+fn mean_theta_last_period(config: PlantConfig) -> f64 {
+    let dt = 0.01;
+    let trace = drive(config, 3.0 / 0.159, dt);
+    let period = (1.0 / 0.159 / dt) as usize;
+    trace[trace.len() - period..].iter().sum::<f64>() / period as f64
+}
+
+#[test]
+fn the_drive_is_homed_with_the_joint_straight_and_its_zero_stays_where_it_fell() {
+    // seating.backlash places the motor's zero inside the drive's play: the
+    // joint starts straight whatever it is, and the offset lasts all run
+    let b = PlantConfig::default().sheath.drive_backlash_mm;
+    let play_deg = TendonGeometry::default()
+        .theta_rad_from_stroke(b)
+        .unwrap()
+        .to_degrees();
+    let homed = |backlash: f64| PlantConfig {
+        seating: Seating {
+            backlash,
+            ..Seating::default()
+        },
+        ..PlantConfig::default()
+    };
+    let start = |side: f64| {
+        let mut plant = Plant::new(homed(side)).unwrap();
+        plant.step(command(0.0, 0.0), 0.01).unwrap().theta_a_deg
+    };
+    // (where the tool's weight alone holds it: gravity is on)
+    for side in [-1.0, 1.0] {
+        assert!(
+            (start(side) - start(0.0)).abs() < 1e-9,
+            "{side}: starts at {}",
+            start(side)
+        );
+    }
+    // zero at the play's −1 end: every command lands one half-width further
+    let (low, mid, high) = (
+        mean_theta_last_period(homed(-1.0)),
+        mean_theta_last_period(homed(0.0)),
+        mean_theta_last_period(homed(1.0)),
+    );
+    for (shift, expected) in [(low - mid, play_deg), (mid - high, play_deg)] {
+        assert!(
+            shift > 0.7 * expected && shift < 1.1 * expected,
+            "shift {shift:.2} deg for a half-width of {expected:.2} deg"
+        );
+    }
+}
+
+#[test]
+fn a_repeat_spreads_the_set_up_more_than_the_build() {
+    // μ is the set-up's (full spread), the drive's play the build's (a third)
+    let nominal = PlantConfig::default();
+    let (mut mu, mut play) = (Vec::new(), Vec::new());
+    for seed in 0..400 {
+        let p = nominal.perturbed(seed, 0.15).unwrap();
+        mu.push(p.sheath.friction_coefficient / nominal.sheath.friction_coefficient - 1.0);
+        play.push(p.sheath.drive_backlash_mm / nominal.sheath.drive_backlash_mm - 1.0);
+    }
+    let std = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+    let (s_mu, s_play) = (std(&mu), std(&play));
+    assert!((s_mu / 0.15 - 1.0).abs() < 0.15, "μ spread {s_mu}");
+    assert!(
+        (s_play / (0.15 * BUILD_SHARE) - 1.0).abs() < 0.15,
+        "play spread {s_play}"
+    );
 }
