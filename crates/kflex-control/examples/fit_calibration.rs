@@ -570,7 +570,8 @@ fn print_rate_mirror_spread(plant: PlantConfig) {
 
 /// What each source of run-to-run spread does alone: the RMSE's and the
 /// loop width's standard deviation over 30 repeats, no noise, every
-/// parameter at a 15 % spread (the build's too), the homing and the
+/// parameter at a 15 % spread (the build's too), the homing as
+/// `perturbed` draws it (uniform over `±HOMING_SHARE` of the play), the
 /// friction seating uniform in `[−1, 1]`, the sheath's angle ±15 deg.
 fn print_spread_by_mechanism(plant: PlantConfig) {
     use rand::{Rng, SeedableRng};
@@ -578,7 +579,8 @@ fn print_spread_by_mechanism(plant: PlantConfig) {
     type Spread = fn(&mut PlantConfig, f64, &mut rand_chacha::ChaCha8Rng);
     let sources: [(&str, Spread); 13] = [
         ("homing in the play", |c, _, r| {
-            c.seating.backlash = r.random_range(-1.0..=1.0);
+            let h = kflex_model::HOMING_SHARE;
+            c.seating.backlash = r.random_range(-h..=h);
         }),
         ("friction seating", |c, _, r| {
             c.seating.friction_a = r.random_range(-1.0..=1.0);

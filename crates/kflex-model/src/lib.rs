@@ -81,7 +81,7 @@ pub use instrument::{Body, Ends, Instrument, InstrumentParams, InstrumentShape, 
 pub use joint::{JointModelKind, JointParams};
 pub use kinematics::TendonGeometry;
 pub use mask::Mask;
-pub use plant::{AuroraNoise, BUILD_SHARE, Command, Plant, PlantConfig, PlantState};
+pub use plant::{AuroraNoise, BUILD_SHARE, Command, HOMING_SHARE, Plant, PlantConfig, PlantState};
 pub use range::MAX_IMAGE_SIDE;
 pub use range::{Bounds, RangeError};
 pub use raster::Rasterizer;

@@ -1,8 +1,9 @@
 //! Behaviour of the whole plant: joint models agree, determinism, bad input.
 
 use kflex_model::{
-    AuroraNoise, BUILD_SHARE, Bounds, Command, JointModelKind, JointParams, ModelError, Plant,
-    PlantConfig, PlantState, RangeError, Seating, SheathParams, TendonGeometry, Trajectory,
+    AuroraNoise, BUILD_SHARE, Bounds, Command, HOMING_SHARE, JointModelKind, JointParams,
+    ModelError, Plant, PlantConfig, PlantState, RangeError, Seating, SheathParams, TendonGeometry,
+    Trajectory,
 };
 use proptest::prelude::*;
 
@@ -687,12 +688,19 @@ fn the_drive_is_homed_with_the_joint_straight_and_its_zero_stays_where_it_fell()
 fn a_repeat_spreads_the_set_up_more_than_the_build() {
     // μ is the set-up's (full spread), the drive's play the build's (a third)
     let nominal = PlantConfig::default();
-    let (mut mu, mut play) = (Vec::new(), Vec::new());
+    let (mut mu, mut play, mut homing) = (Vec::new(), Vec::new(), Vec::new());
     for seed in 0..400 {
         let p = nominal.perturbed(seed, 0.15).unwrap();
         mu.push(p.sheath.friction_coefficient / nominal.sheath.friction_coefficient - 1.0);
         play.push(p.sheath.drive_backlash_mm / nominal.sheath.drive_backlash_mm - 1.0);
+        homing.push(p.seating.backlash);
     }
+    // the drive homed over the middle of its play, uniformly
+    let widest = homing.iter().fold(0.0f64, |m, h| m.max(h.abs()));
+    assert!(
+        widest <= HOMING_SHARE && widest > 0.95 * HOMING_SHARE,
+        "{widest}"
+    );
     let std = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
     let (s_mu, s_play) = (std(&mu), std(&play));
     assert!((s_mu / 0.15 - 1.0).abs() < 0.15, "μ spread {s_mu}");
