@@ -35,7 +35,8 @@ serde_class!(
 );
 
 serde_class!(
-    /// How the tendons sit in their sheaths at rest (kflex-model's `Seating`), each in [-1, 1].
+    /// How the tendons sit in their sheaths at rest and where in its play the
+    /// drive was homed (kflex-model's `Seating`), each in [-1, 1].
     PySeating, "Seating", Seating, {
         /// Checks that every field lies in [-1, 1]; raises `RangeError`.
         fn validate(&self) -> Result<()> {
@@ -212,7 +213,7 @@ pub struct PyPlantConfig {
     /// Total bend of the sheath, deg (the paper: 0, 90, 180, 270).
     #[pyo3(get, set)]
     sheath_deg: f64,
-    /// How the tendons sit at start and reset.
+    /// How the tendons sit at start and reset, and where the drive was homed.
     #[pyo3(get, set)]
     seating: Py<PySeating>,
     /// Joint mechanics.
