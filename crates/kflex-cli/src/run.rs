@@ -57,8 +57,9 @@ pub struct RunArgs {
     /// Control tick, s.
     #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
     dt: f64,
-    /// Relative spread of the plant's physical parameters between repeats, with
-    /// each repeat's own tendon seating (0: identical plants at rest).
+    /// Relative spread of the plant's physical parameters between repeats (the
+    /// set-up's; the build's by a third of it), with each repeat's own tendon
+    /// seating and homing of the drive (0: identical plants at rest).
     #[arg(long, default_value_t = 0.15, allow_negative_numbers = true)]
     spread: f64,
     /// Score the true angle instead of the Aurora-like measurement.

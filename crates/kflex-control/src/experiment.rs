@@ -184,7 +184,7 @@ impl OpenLoopScenario {
 /// as in the paper's measurements).
 ///
 /// **Repeats.** Each repeat draws a plant from the nominal one with a
-/// parameter spread ([`kflex_model::PlantConfig::perturbed`]: every physical
+/// parameter spread ([`kflex_model::PlantConfig::perturbed`]: the physical
 /// parameter, the build's by a third as much as the set-up's, and the
 /// tendons' seating with the drive's homing) and its own noise seed; both
 /// seeds are recorded. The spread stands in for what changes between

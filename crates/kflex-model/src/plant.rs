@@ -129,9 +129,10 @@ impl PlantConfig {
     }
 
     /// A copy drawn around this one for a repeated experiment: the same
-    /// instrument set up again. Every physical parameter of the transmission
-    /// and the joint is scaled by its own factor `1 + share · rel_std · N(0, 1)`
-    /// (clamped to `[0.5, 1.5]`):
+    /// instrument set up again. These physical parameters of the
+    /// transmission and the joint are scaled, each by its own factor
+    /// `1 + share · rel_std · N(0, 1)` (clamped to `[0.5, 1.5]`; the geometry,
+    /// masses, gravity, stops and element count are not drawn):
     /// * how the instrument is set up for a run, `share` 1: the friction
     ///   coefficient (lubrication, temperature, wear-in), the route wrap (how
     ///   the sheath leaves the drive), the pretension (re-tensioned, creep),
@@ -143,8 +144,8 @@ impl PlantConfig {
     /// With `rel_std > 0` each repeat also starts from its own seating
     /// (see [`Seating`]): the friction states drawn uniformly from `[−1, 1]`
     /// (how the instrument was last moved), and the drive's homing position
-    /// from `±`[`HOMING_SHARE`] of its play (where it was zeroed, which
-    /// offsets every command all run). Deterministic in `seed`. This configuration is checked
+    /// uniformly from `±`[`HOMING_SHARE`] of the play's half-width, its
+    /// middle 60 % (where it was zeroed, which offsets every command all run). Deterministic in `seed`. This configuration is checked
     /// first, so an error names the value as given, not a scaled one.
     ///
     /// The split and the homing are what put the run-to-run spread within a
@@ -212,7 +213,8 @@ pub struct PlantState {
     pub theta_a_measured_deg: f64,
     /// Translation as the tracker reports it, mm.
     pub translation_measured_mm: f64,
-    /// Motor stroke on tendon `a` (pull-in positive, `−ΔL_a(θ_c)`), mm.
+    /// Motor stroke on tendon `a` (pull-in positive, `−ΔL_a(θ_c)`), mm, from
+    /// the motor's homed zero (before the drive's play).
     pub motor_stroke_a_mm: f64,
     /// Motor stroke on tendon `b` (`−ΔL_b(θ_c)`), mm.
     pub motor_stroke_b_mm: f64,
@@ -245,7 +247,8 @@ enum JointSolver {
 /// settles where the tendons, its backbone, gravity and the tip load
 /// balance. An optional Aurora-like sensor adds Gaussian noise to the
 /// *measured* angle; the true angle is never noisy. [`PlantConfig::seating`]
-/// says how the tendons and the drive sit when it starts.
+/// says how the tendons sit when it starts and where in its play the drive
+/// was homed, which offsets every command for as long as it runs.
 pub struct Plant {
     config: PlantConfig,
     sheath: TendonSheath,

@@ -449,8 +449,12 @@ proptest! {
     fn state_stays_finite_and_in_range(
         commands in prop::collection::vec((-120.0f64..120.0, 0.0f64..40.0, 1e-4f64..0.5), 1..80),
         sheath_deg in 0.0f64..400.0,
+        homing in -1.0f64..=1.0,
     ) {
-        let mut plant = Plant::new(PlantConfig { sheath_deg, ..PlantConfig::default() }).unwrap();
+        // a drive homed off the middle of its play strokes past the stop's
+        // stroke by up to its half-width, all run
+        let seating = Seating { backlash: homing, ..Seating::default() };
+        let mut plant = Plant::new(PlantConfig { sheath_deg, seating, ..PlantConfig::default() }).unwrap();
         for (theta_deg, translation_mm, dt) in commands {
             let s = plant.step(Command { theta_c_deg: theta_deg, translation_mm }, dt).unwrap();
             for v in [s.theta_a_deg, s.translation_mm, s.differential_force_n, s.tensions.a_distal_n, s.tensions.b_distal_n,
@@ -608,7 +612,7 @@ fn a_perturbed_config_reports_the_value_as_given() {
     let err = config.perturbed(7, 0.15).unwrap_err();
     let range = err.range().expect("a range error");
     assert_eq!((range.name, range.value), ("friction_coefficient", -0.2));
-    // every physical parameter is spread, and the seating is drawn
+    // each of these physical parameters is spread, and the seating is drawn
     let nominal = PlantConfig::default();
     let p = nominal.perturbed(7, 0.15).unwrap();
     let (s, n) = (p.sheath, nominal.sheath);
@@ -621,6 +625,7 @@ fn a_perturbed_config_reports_the_value_as_given() {
         (s.drive_backlash_mm, n.drive_backlash_mm),
         (s.backlash_engagement_mm, n.backlash_engagement_mm),
         (s.presliding_mm, n.presliding_mm),
+        (s.sheath_path_mm_per_rad, n.sheath_path_mm_per_rad),
         (
             p.joint.contact_stiffness_nmm_per_rad,
             nominal.joint.contact_stiffness_nmm_per_rad,
@@ -686,26 +691,79 @@ fn the_drive_is_homed_with_the_joint_straight_and_its_zero_stays_where_it_fell()
 
 #[test]
 fn a_repeat_spreads_the_set_up_more_than_the_build() {
-    // μ is the set-up's (full spread), the drive's play the build's (a third)
+    // each parameter's relative spread over many draws: the set-up's at the
+    // full spread, the build's at BUILD_SHARE of it
+    type Get = fn(&PlantConfig) -> f64;
+    let params: [(&str, Get, f64); 10] = [
+        ("μ", |c| c.sheath.friction_coefficient, 1.0),
+        ("route wrap", |c| c.sheath.route_wrap_deg, 1.0),
+        ("pretension", |c| c.sheath.pretension_n, 1.0),
+        ("pre-sliding", |c| c.sheath.presliding_mm, 1.0),
+        (
+            "tendon stiffness",
+            |c| c.sheath.tendon_stiffness_n_per_mm,
+            BUILD_SHARE,
+        ),
+        (
+            "distal stiffness",
+            |c| c.sheath.distal_stiffness_n_per_mm,
+            BUILD_SHARE,
+        ),
+        ("backlash", |c| c.sheath.drive_backlash_mm, BUILD_SHARE),
+        (
+            "engagement",
+            |c| c.sheath.backlash_engagement_mm,
+            BUILD_SHARE,
+        ),
+        (
+            "path change",
+            |c| c.sheath.sheath_path_mm_per_rad,
+            BUILD_SHARE,
+        ),
+        (
+            "contact stiffness",
+            |c| c.joint.contact_stiffness_nmm_per_rad,
+            BUILD_SHARE,
+        ),
+    ];
     let nominal = PlantConfig::default();
-    let (mut mu, mut play, mut homing) = (Vec::new(), Vec::new(), Vec::new());
-    for seed in 0..400 {
-        let p = nominal.perturbed(seed, 0.15).unwrap();
-        mu.push(p.sheath.friction_coefficient / nominal.sheath.friction_coefficient - 1.0);
-        play.push(p.sheath.drive_backlash_mm / nominal.sheath.drive_backlash_mm - 1.0);
-        homing.push(p.seating.backlash);
+    let drawn: Vec<PlantConfig> = (0..400)
+        .map(|seed| nominal.perturbed(seed, 0.15).unwrap())
+        .collect();
+    for (name, get, share) in params {
+        let rel: Vec<f64> = drawn.iter().map(|p| get(p) / get(&nominal) - 1.0).collect();
+        let std = (rel.iter().map(|x| x * x).sum::<f64>() / rel.len() as f64).sqrt();
+        assert!(
+            (std / (0.15 * share) - 1.0).abs() < 0.15,
+            "{name}: spread {std:.4}, expected {:.4}",
+            0.15 * share
+        );
     }
     // the drive homed over the middle of its play, uniformly
+    let homing: Vec<f64> = drawn.iter().map(|p| p.seating.backlash).collect();
     let widest = homing.iter().fold(0.0f64, |m, h| m.max(h.abs()));
     assert!(
         widest <= HOMING_SHARE && widest > 0.95 * HOMING_SHARE,
         "{widest}"
     );
-    let std = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
-    let (s_mu, s_play) = (std(&mu), std(&play));
-    assert!((s_mu / 0.15 - 1.0).abs() < 0.15, "μ spread {s_mu}");
-    assert!(
-        (s_play / (0.15 * BUILD_SHARE) - 1.0).abs() < 0.15,
-        "play spread {s_play}"
-    );
+}
+
+#[test]
+fn a_reset_homes_the_drive_again() {
+    // after a run, reset gives the plant a fresh one gives, homing included
+    let config = PlantConfig {
+        seating: Seating {
+            backlash: -0.8,
+            ..Seating::default()
+        },
+        ..PlantConfig::default()
+    };
+    let mut used = Plant::new(config).unwrap();
+    ramp(&mut used, 300, 0.01, |k| 40.0 * (k / 100.0).sin().abs());
+    used.reset().unwrap();
+    let mut fresh = Plant::new(config).unwrap();
+    for k in 1..=200 {
+        let c = command(0.2 * f64::from(k), 0.0);
+        assert_eq!(used.step(c, 0.01).unwrap(), fresh.step(c, 0.01).unwrap());
+    }
 }

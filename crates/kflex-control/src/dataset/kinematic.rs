@@ -8,7 +8,10 @@ use crate::error::{ControlError, Result};
 
 /// Version of [`KinematicDatasetConfig::generate`]'s output for a given
 /// configuration (see [`DatasetCard::generator_version`]).
-pub const KINEMATIC_GENERATOR_VERSION: u32 = 1;
+///
+/// 2: the plants' spread by mechanism (the set-up's parameters more than
+/// the build's) and one homing of the drive for the whole set.
+pub const KINEMATIC_GENERATOR_VERSION: u32 = 2;
 
 /// One periodic signal of D^k.
 ///
@@ -34,7 +37,7 @@ pub struct KinematicSetSpec {
 ///
 /// **Protocol.** Set `i` (in `sets` order) runs its own plant
 /// ([`KinematicDatasetConfig::set_plant`]): the nominal `plant` drawn with
-/// [`PlantConfig::perturbed`]`(seed + i, spread)` (every physical parameter
+/// [`PlantConfig::perturbed`]`(seed + i, spread)` (its physical parameters
 /// and the tendons' seating; friction and tension drift between signals),
 /// but homed once for the whole set (set 0's homing: the drive is homed
 /// when the robot is set up, not between signals), its measurement noise

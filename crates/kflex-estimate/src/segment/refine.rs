@@ -118,17 +118,15 @@ fn box_sum(region: &Region2d, [x0, y0, x1, y1]: [isize; 4]) -> ([i64; 3], i64) {
 }
 
 /// The colour summed over the 4×4 pixels from `(x0, y0)`, which lie in
-/// the region: each row's twelve bytes added lane by lane (a sum of 16
-/// bytes fits a `u16`), then the lanes folded into the three channels.
+/// the region: each row's twelve bytes added lane by lane (a lane adds four
+/// bytes, at most 1,020: a `u16`), then the lanes folded into the three
+/// channels.
 #[inline]
 fn box4(region: &Region2d, x0: usize, y0: usize) -> [i64; 3] {
     let mut lanes = [0u16; 12];
     for y in y0..y0 + 4 {
         let start = region.first + y * region.stride + 3 * x0;
-        let Some(row) = region.rgb.get(start..start + 12) else {
-            continue;
-        };
-        for (l, &v) in lanes.iter_mut().zip(row) {
+        for (l, &v) in lanes.iter_mut().zip(&region.rgb[start..start + 12]) {
             *l += u16::from(v);
         }
     }
@@ -303,4 +301,58 @@ pub(super) fn refine(
     }
     // a cell row's pixels come in two pixel rows
     changes.sort_unstable_by_key(|&c| changed(c).0);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The clipped loop alone, as `box_sum` has it for boxes at the edges.
+    fn clipped(region: &Region2d, [x0, y0, x1, y1]: [isize; 4]) -> [i64; 3] {
+        let clip = |v: isize, n: usize| v.clamp(0, n as isize) as usize;
+        let (x0, x1) = (clip(x0, region.width), clip(x1, region.width));
+        let (y0, y1) = (clip(y0, region.height), clip(y1, region.height));
+        let mut sum = [0i64; 3];
+        for yy in y0..y1 {
+            let start = region.first + yy * region.stride;
+            for px in region.rgb[start + 3 * x0..start + 3 * x1].chunks_exact(3) {
+                (0..3).for_each(|k| sum[k] += i64::from(px[k]));
+            }
+        }
+        features(sum)
+    }
+
+    #[test]
+    fn a_whole_box_sums_as_the_clipped_loop_does() {
+        // a region inside a wider image (offset and stride), saturated
+        // bytes included, every 4×4 box in it and the boxes over its edges
+        let (stride_px, width, height, first_px) = (13usize, 9usize, 7usize, 2usize);
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let rgb: Vec<u8> = (0..3 * stride_px * (height + 1))
+            .map(|i| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                if i % 7 == 0 { 255 } else { (state >> 56) as u8 }
+            })
+            .collect();
+        let region = Region2d {
+            rgb: &rgb,
+            first: 3 * (stride_px + first_px),
+            stride: 3 * stride_px,
+            width,
+            height,
+        };
+        for y0 in -2..height as isize {
+            for x0 in -2..width as isize {
+                let b = [x0, y0, x0 + 4, y0 + 4];
+                let (sum, count) = box_sum(&region, b);
+                assert_eq!(sum, clipped(&region, b), "box at ({x0}, {y0})");
+                let inside = |v: isize, n: usize| (v.clamp(0, n as isize)) as i64;
+                let expected = (inside(x0 + 4, width) - inside(x0, width))
+                    * (inside(y0 + 4, height) - inside(y0, height));
+                assert_eq!(count, expected);
+            }
+        }
+    }
 }
