@@ -17,6 +17,10 @@ use matrix::{Bench, Condition, cases, min_median};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut bench = Bench::default();
+    // other backgrounds of the same organs: `KFLEX_MATRIX_SEED=N` adds N to their seeds
+    if let Ok(offset) = std::env::var("KFLEX_MATRIX_SEED") {
+        bench.seed_offset = offset.parse()?;
+    }
     // thresholds to try: `KFLEX_SEGMENT_PARAMS='{"bright_ratio": 1.3}'`
     // overrides the defaults' fields it names
     let params = match std::env::var("KFLEX_SEGMENT_PARAMS") {

@@ -35,6 +35,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         d_mm: d.parse()?,
     };
     let mut bench = Bench::default();
+    // other backgrounds of the same organs: `KFLEX_MATRIX_SEED=N` adds N to their seeds
+    if let Ok(offset) = std::env::var("KFLEX_MATRIX_SEED") {
+        bench.seed_offset = offset.parse()?;
+    }
     let (frame, _) = bench.frame(case, condition);
     let roi = bench.roi_of(case);
     let truth = frame.instrument.crop(roi)?;

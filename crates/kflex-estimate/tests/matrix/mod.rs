@@ -147,6 +147,9 @@ pub struct Bench {
     pub regions: WorkingRegions,
     /// The region of frames without the instrument: the band of (0°, 10 mm).
     pub roi: Roi,
+    /// Added to each background's seed (0: the backgrounds the bounds were
+    /// measured on; the examples read `KFLEX_MATRIX_SEED` into it to try others).
+    pub seed_offset: u64,
     renderer: SceneRenderer,
     raster: Rasterizer,
 }
@@ -159,6 +162,7 @@ impl Default for Bench {
             roi: regions.at(0.0, 10.0).expect("band").roi,
             regions,
             camera,
+            seed_offset: 0,
             renderer: SceneRenderer::new(),
             raster: Rasterizer::new(),
         }
@@ -189,8 +193,8 @@ impl Bench {
             .roi
     }
 
-    fn seed(background: Background) -> u64 {
-        3 + background as u64
+    fn seed(&self, background: Background) -> u64 {
+        (3 + background as u64).wrapping_add(self.seed_offset)
     }
 
     /// The frame of `case` under `condition`, with the distal-only truth
@@ -199,7 +203,7 @@ impl Bench {
         let shape = Instrument::kflex()
             .shape(case.theta_deg, case.d_mm)
             .expect("pose in the workspace");
-        let params = condition.frame_params(case.background, Self::seed(case.background));
+        let params = condition.frame_params(case.background, self.seed(case.background));
         let mut frame = self
             .renderer
             .render(&self.camera, &shape, &params)
