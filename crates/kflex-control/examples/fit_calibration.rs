@@ -36,7 +36,7 @@
 #[path = "../tests/support/loop_shape.rs"]
 mod loop_shape;
 
-use kflex_control::{GridRow, OpenLoopGrid};
+use kflex_control::{GridRow, MeanStd, OpenLoopGrid};
 use kflex_model::PlantConfig;
 
 const SHEATHS: [f64; 4] = [0.0, 90.0, 180.0, 270.0];
@@ -616,10 +616,6 @@ fn print_spread_by_mechanism(plant: PlantConfig) {
     println!("Each source of spread alone, 30 repeats, no noise: RMSE std / width std (deg)");
     println!("| alone | 0 deg | 90 deg | 180 deg | 270 deg |");
     println!("|---|---|---|---|---|");
-    let std = |v: &[f64]| {
-        let m = v.iter().sum::<f64>() / v.len() as f64;
-        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
-    };
     for (name, spread) in sources {
         let mut line = format!("| {name} |");
         for sheath_deg in SHEATHS {
@@ -639,7 +635,10 @@ fn print_spread_by_mechanism(plant: PlantConfig) {
                 rmse.push(rows[0].rmse_deg.mean);
                 width.push(rows[0].max_hysteresis_deg.mean);
             }
-            line.push_str(&format!(" {:.2} / {:.2} |", std(&rmse), std(&width)));
+            let (Ok(r), Ok(w)) = (MeanStd::of(&rmse), MeanStd::of(&width)) else {
+                return;
+            };
+            line.push_str(&format!(" {:.2} / {:.2} |", r.std, w.std));
         }
         println!("{line}");
     }

@@ -145,8 +145,9 @@ impl PlantConfig {
     /// (see [`Seating`]): the friction states drawn uniformly from `[−1, 1]`
     /// (how the instrument was last moved), and the drive's homing position
     /// uniformly from `±`[`HOMING_SHARE`] of the play's half-width, its
-    /// middle 60 % (where it was zeroed, which offsets every command all run). Deterministic in `seed`. This configuration is checked
-    /// first, so an error names the value as given, not a scaled one.
+    /// middle 60 % (where it was zeroed, which offsets every command all
+    /// run). Deterministic in `seed`. This configuration is checked first,
+    /// so an error names the value as given, not a scaled one.
     ///
     /// The split and the homing are what put the run-to-run spread within a
     /// factor of 3 of the paper's ± at every sheath angle, for the RMSE and

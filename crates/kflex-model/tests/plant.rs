@@ -603,6 +603,42 @@ fn joint_follows_its_path_under_compressive_tip_loads() {
     }
 }
 
+/// The parameters `perturbed` draws: name, where it lives, and its share of
+/// the spread (the set-up's 1, the build's `BUILD_SHARE`).
+type Get = fn(&PlantConfig) -> f64;
+const SPREAD: [(&str, Get, f64); 10] = [
+    ("μ", |c| c.sheath.friction_coefficient, 1.0),
+    ("route wrap", |c| c.sheath.route_wrap_deg, 1.0),
+    ("pretension", |c| c.sheath.pretension_n, 1.0),
+    ("pre-sliding", |c| c.sheath.presliding_mm, 1.0),
+    (
+        "tendon stiffness",
+        |c| c.sheath.tendon_stiffness_n_per_mm,
+        BUILD_SHARE,
+    ),
+    (
+        "distal stiffness",
+        |c| c.sheath.distal_stiffness_n_per_mm,
+        BUILD_SHARE,
+    ),
+    ("backlash", |c| c.sheath.drive_backlash_mm, BUILD_SHARE),
+    (
+        "engagement",
+        |c| c.sheath.backlash_engagement_mm,
+        BUILD_SHARE,
+    ),
+    (
+        "path change",
+        |c| c.sheath.sheath_path_mm_per_rad,
+        BUILD_SHARE,
+    ),
+    (
+        "contact stiffness",
+        |c| c.joint.contact_stiffness_nmm_per_rad,
+        BUILD_SHARE,
+    ),
+];
+
 #[test]
 fn a_perturbed_config_reports_the_value_as_given() {
     // the check runs before the spread is drawn: μ = −0.2 is reported as −0.2,
@@ -615,23 +651,9 @@ fn a_perturbed_config_reports_the_value_as_given() {
     // each of these physical parameters is spread, and the seating is drawn
     let nominal = PlantConfig::default();
     let p = nominal.perturbed(7, 0.15).unwrap();
-    let (s, n) = (p.sheath, nominal.sheath);
-    for (a, b) in [
-        (s.friction_coefficient, n.friction_coefficient),
-        (s.route_wrap_deg, n.route_wrap_deg),
-        (s.pretension_n, n.pretension_n),
-        (s.tendon_stiffness_n_per_mm, n.tendon_stiffness_n_per_mm),
-        (s.distal_stiffness_n_per_mm, n.distal_stiffness_n_per_mm),
-        (s.drive_backlash_mm, n.drive_backlash_mm),
-        (s.backlash_engagement_mm, n.backlash_engagement_mm),
-        (s.presliding_mm, n.presliding_mm),
-        (s.sheath_path_mm_per_rad, n.sheath_path_mm_per_rad),
-        (
-            p.joint.contact_stiffness_nmm_per_rad,
-            nominal.joint.contact_stiffness_nmm_per_rad,
-        ),
-    ] {
-        assert!(a != b && (a / b - 1.0).abs() <= 0.5, "{a} vs {b}");
+    for (name, get, _) in SPREAD {
+        let (a, b) = (get(&p), get(&nominal));
+        assert!(a != b && (a / b - 1.0).abs() <= 0.5, "{name}: {a} vs {b}");
     }
     assert!(p.seating != nominal.seating && p.seating.validate().is_ok());
     // no spread: the nominal plant at rest
@@ -693,44 +715,11 @@ fn the_drive_is_homed_with_the_joint_straight_and_its_zero_stays_where_it_fell()
 fn a_repeat_spreads_the_set_up_more_than_the_build() {
     // each parameter's relative spread over many draws: the set-up's at the
     // full spread, the build's at BUILD_SHARE of it
-    type Get = fn(&PlantConfig) -> f64;
-    let params: [(&str, Get, f64); 10] = [
-        ("μ", |c| c.sheath.friction_coefficient, 1.0),
-        ("route wrap", |c| c.sheath.route_wrap_deg, 1.0),
-        ("pretension", |c| c.sheath.pretension_n, 1.0),
-        ("pre-sliding", |c| c.sheath.presliding_mm, 1.0),
-        (
-            "tendon stiffness",
-            |c| c.sheath.tendon_stiffness_n_per_mm,
-            BUILD_SHARE,
-        ),
-        (
-            "distal stiffness",
-            |c| c.sheath.distal_stiffness_n_per_mm,
-            BUILD_SHARE,
-        ),
-        ("backlash", |c| c.sheath.drive_backlash_mm, BUILD_SHARE),
-        (
-            "engagement",
-            |c| c.sheath.backlash_engagement_mm,
-            BUILD_SHARE,
-        ),
-        (
-            "path change",
-            |c| c.sheath.sheath_path_mm_per_rad,
-            BUILD_SHARE,
-        ),
-        (
-            "contact stiffness",
-            |c| c.joint.contact_stiffness_nmm_per_rad,
-            BUILD_SHARE,
-        ),
-    ];
     let nominal = PlantConfig::default();
     let drawn: Vec<PlantConfig> = (0..400)
         .map(|seed| nominal.perturbed(seed, 0.15).unwrap())
         .collect();
-    for (name, get, share) in params {
+    for (name, get, share) in SPREAD {
         let rel: Vec<f64> = drawn.iter().map(|p| get(p) / get(&nominal) - 1.0).collect();
         let std = (rel.iter().map(|x| x * x).sum::<f64>() / rel.len() as f64).sqrt();
         assert!(

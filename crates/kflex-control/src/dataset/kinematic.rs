@@ -42,9 +42,10 @@ pub struct KinematicSetSpec {
 /// but homed once for the whole set (set 0's homing: the drive is homed
 /// when the robot is set up, not between signals), its measurement noise
 /// `noise` with seed `seed + i`. A homing of its own per signal would put
-/// an offset into each signal's θ̃ that no model of (θ, θ') can learn. The plant starts at rest, straight, as the signal does
-/// (θ_d(0) = 0); it runs `warmup_cycles` cycles unrecorded (the first
-/// loading from rest is not a steady hysteresis loop), then records
+/// an offset into each signal's θ̃ that no model of (θ, θ') can learn. The
+/// plant starts at rest, straight, as the signal does (θ_d(0) = 0); it
+/// runs `warmup_cycles` cycles unrecorded (the first loading from rest is
+/// not a steady hysteresis loop), then records
 /// `samples_per_set` ticks of `dt_s`: θ_d and its exact rate θ_d' at the end
 /// of each tick, and θ_a, true and as measured. KBJAE learns
 /// `θ̃ = θ_a(measured) − θ_d` (the paper's ground truth is the Aurora's).
