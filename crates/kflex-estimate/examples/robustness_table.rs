@@ -4,8 +4,11 @@
 //!
 //! `cargo run --release -p kflex-estimate --example robustness_table`
 //! (with `KFLEX_SEGMENT_PARAMS='{"field": value, …}'` it measures other
-//! thresholds than the defaults; with `KFLEX_WORST=1` it also names each condition's worst case, in the
-//! region and on the bend and gripper, for `examples/segment_case.rs`)
+//! thresholds than the defaults; with `KFLEX_WORST=1` it also names each
+//! condition's worst case, in the region and on the bend and gripper, for
+//! `examples/segment_case.rs`, with `KFLEX_UNDER=1` every case under a goal;
+//! `KFLEX_MATRIX_SEED=0,100,200` pools the cases over other backgrounds of
+//! the same organs, their seeds moved by each offset)
 
 #[path = "../tests/matrix/mod.rs"]
 mod matrix;
@@ -17,10 +20,15 @@ use matrix::{Bench, Condition, cases, min_median};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut bench = Bench::default();
-    // other backgrounds of the same organs: `KFLEX_MATRIX_SEED=N` adds N to their seeds
-    if let Ok(offset) = std::env::var("KFLEX_MATRIX_SEED") {
-        bench.seed_offset = offset.parse()?;
-    }
+    // other backgrounds of the same organs: `KFLEX_MATRIX_SEED=N` adds N to
+    // their seeds; `N,M,…` pools the cases of each
+    let offsets: Vec<u64> = match std::env::var("KFLEX_MATRIX_SEED") {
+        Ok(list) => list
+            .split(',')
+            .map(|o| o.trim().parse())
+            .collect::<Result<_, _>>()?,
+        Err(_) => vec![0],
+    };
     // thresholds to try: `KFLEX_SEGMENT_PARAMS='{"bright_ratio": 1.3}'`
     // overrides the defaults' fields it names
     let params = match std::env::var("KFLEX_SEGMENT_PARAMS") {
@@ -30,18 +38,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut segmenter = Segmenter::new(params)?;
     let cases = cases();
     println!(
-        "{} cases a condition (backgrounds {:?} × θ {:?} deg × d {:?} mm), each in the \
-         working region of its pose (`WorkingRegions::full`)",
-        cases.len(),
+        "{} cases a condition (backgrounds {:?} × θ {:?} deg × d {:?} mm, background seed \
+         offsets {offsets:?}), each in the working region of its pose (`WorkingRegions::full`)",
+        cases.len() * offsets.len(),
         Background::ALL,
         matrix::THETAS_DEG,
         matrix::DS_MM,
     );
     println!();
     println!(
-        "| condition | no instrument | ROI IoU min | ROI IoU median | distal IoU min | distal IoU median |"
+        "| condition | no instrument | ROI IoU min | ROI IoU median | distal IoU min | distal IoU median | under a goal |"
     );
-    println!("|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|");
     let fmt = |v: Option<(f64, f64)>| match v {
         Some((min, median)) => (format!("{min:.3}"), format!("{median:.3}")),
         None => ("–".into(), "–".into()),
@@ -51,24 +59,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|c| (true, *c))
         .chain(Condition::BEYOND.iter().map(|c| (false, *c)))
     {
-        let (mut roi, mut distal, mut missed) = (Vec::new(), Vec::new(), 0);
+        let (mut roi, mut distal, mut missed, mut under) = (Vec::new(), Vec::new(), 0, 0);
         let (mut worst, mut worst_distal) = (None, None);
-        for &case in &cases {
+        for (&offset, &case) in offsets.iter().flat_map(|o| cases.iter().map(move |c| (o, c))) {
+            bench.seed_offset = offset;
             match bench.score(&mut segmenter, case, condition) {
                 Ok(s) => {
-                    if worst.is_none_or(|(w, _)| s.roi < w) {
-                        worst = Some((s.roi, case));
+                    if worst.is_none_or(|(w, _, _)| s.roi < w) {
+                        worst = Some((s.roi, offset, case));
                     }
                     if let Some(d) = s.distal
-                        && worst_distal.is_none_or(|(w, _)| d < w)
+                        && worst_distal.is_none_or(|(w, _, _)| d < w)
                     {
-                        worst_distal = Some((d, case));
+                        worst_distal = Some((d, offset, case));
                     }
+                    let short = s.roi < matrix::GOAL_ROI
+                        || s.distal.is_some_and(|d| d < matrix::GOAL_DISTAL);
+                    if short && std::env::var_os("KFLEX_UNDER").is_some() {
+                        eprintln!("  under: {} offset {offset} {case:?} {s:?}", condition.name());
+                    }
+                    under += usize::from(short);
                     roi.push(s.roi);
                     distal.extend(s.distal);
                 }
                 Err(EstimateError::NoInstrument { .. }) => {
                     missed += 1;
+                    under += 1;
                     roi.push(0.0);
                     distal.push(0.0);
                 }
@@ -82,11 +98,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         } else {
             format!("{} (past the goals)", condition.name())
         };
-        println!("| {name} | {missed} | {rmin} | {rmed} | {dmin} | {dmed} |");
+        println!("| {name} | {missed} | {rmin} | {rmed} | {dmin} | {dmed} | {under} |");
         if std::env::var_os("KFLEX_WORST").is_some() {
             for (what, w) in [("ROI", worst), ("distal", worst_distal)] {
-                if let Some((iou, case)) = w {
-                    eprintln!("  worst {what} {iou:.3}: {case:?}");
+                if let Some((iou, offset, case)) = w {
+                    eprintln!("  worst {what} {iou:.3}: seed offset {offset}, {case:?}");
                 }
             }
         }

@@ -15,6 +15,12 @@ use kflex_model::{
 pub const THETAS_DEG: [f64; 5] = [-60.0, -30.0, 0.0, 30.0, 60.0];
 /// Translations of the matrix, mm.
 pub const DS_MM: [f64; 3] = [8.0, 20.0, 35.0];
+/// Issue 9's goal for a case's IoU in its working region.
+#[allow(dead_code)] // read by the examples
+pub const GOAL_ROI: f64 = 0.90;
+/// Issue 9's goal for a case's IoU on the bend and gripper alone.
+#[allow(dead_code)] // read by the examples
+pub const GOAL_DISTAL: f64 = 0.85;
 /// Distal truth smaller than this (px in the region) is not scored: at d = 0
 /// little of the bend and gripper is out of the overtube.
 pub const MIN_DISTAL_PX: usize = 200;
