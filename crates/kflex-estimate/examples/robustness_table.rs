@@ -61,7 +61,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     {
         let (mut roi, mut distal, mut missed, mut under) = (Vec::new(), Vec::new(), 0, 0);
         let (mut worst, mut worst_distal) = (None, None);
-        for (&offset, &case) in offsets.iter().flat_map(|o| cases.iter().map(move |c| (o, c))) {
+        for (&offset, &case) in offsets
+            .iter()
+            .flat_map(|o| cases.iter().map(move |c| (o, c)))
+        {
             bench.seed_offset = offset;
             match bench.score(&mut segmenter, case, condition) {
                 Ok(s) => {
@@ -76,7 +79,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let short = s.roi < matrix::GOAL_ROI
                         || s.distal.is_some_and(|d| d < matrix::GOAL_DISTAL);
                     if short && std::env::var_os("KFLEX_UNDER").is_some() {
-                        eprintln!("  under: {} offset {offset} {case:?} {s:?}", condition.name());
+                        eprintln!(
+                            "  under: {} offset {offset} {case:?} {s:?}",
+                            condition.name()
+                        );
                     }
                     under += usize::from(short);
                     roi.push(s.roi);

@@ -16,8 +16,11 @@ use super::{DatasetCard, parallel, stream};
 use crate::error::{ControlError, Result};
 
 /// Version of [`ImagePairsConfig::generate`]'s and
-/// [`ImagePairsConfig::database`]'s output for a given configuration.
-pub const IMAGE_GENERATOR_VERSION: u32 = 1;
+/// [`ImagePairsConfig::database`]'s output for a given configuration: it
+/// changes with any change to the frames' or silhouettes' pixels (the
+/// renderer, the lens, the segmentation). 2: overexposed tissue is clipped
+/// by the sensor, after the lens, not before it.
+pub const IMAGE_GENERATOR_VERSION: u32 = 2;
 
 /// Side of IBJAE's silhouettes, px.
 const SIDE: u32 = 48;

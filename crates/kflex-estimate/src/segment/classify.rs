@@ -311,6 +311,20 @@ pub(super) fn classify(s: &mut Scratch, p: &SegmentParams, cols: usize, rows: us
         if round == 2 {
             break;
         }
+        // tissue whose brightest channel clips keeps a colour (steel that
+        // clips is white): where it lies clearly off the metal's it is
+        // tissue, and its colour counts; the clipped channel pulls it toward
+        // neutral, so it is paler than the tissue, never the metal's
+        for &i in roots.iter() {
+            let r = &regions[i as usize];
+            if region_class[i as usize] == CLIPPED
+                && r.mean.iter().copied().fold(f32::INFINITY, f32::min) <= p.clip_value
+                && dist2(r.chroma, metal) > p.grow_separation.powi(2)
+            {
+                hx.add(r.chroma[0], -1.0, 1.0, f64::from(r.count));
+                hy.add(r.chroma[1], -1.0, 1.0, f64::from(r.count));
+            }
+        }
         if hx.total > 0.0 {
             tissue = [hx.quantile(0.5, -1.0, 1.0), hy.quantile(0.5, -1.0, 1.0)];
         }

@@ -92,7 +92,7 @@ impl Tissue {
     ];
 
     /// Repaints one pixel of the background as the camera shows it
-    /// (encoded, `[0, 1]`), keeping its brightness `y` (the mean of its
+    /// (encoded, 0 and up: above 1 is overexposed), keeping its brightness `y` (the mean of its
     /// channels) and, where the colour keeps any, its hue.
     pub(super) fn paint(self, c: [f32; 3]) -> [f32; 3] {
         let y = (c[0] + c[1] + c[2]) / 3.0;
@@ -107,7 +107,7 @@ impl Tissue {
             Tissue::BlueGreen => [0.55 * y, 1.15 * y, 1.3 * y],
             Tissue::Yellow => [1.25 * y, 1.1 * y, 0.65 * y],
         };
-        out.map(|v| v.clamp(0.0, 1.0))
+        out.map(|v| v.max(0.0))
     }
 }
 
@@ -188,7 +188,9 @@ const VESSEL: [f32; 3] = [0.60, 0.34, 0.48];
 /// Wet highlights' colour at their core: white, a little warm.
 const SPECULAR: [f32; 3] = [1.0, 0.97, 0.93];
 
-/// The background texture, linear RGB f32 in [0, 1], row-major, 3 per pixel.
+/// The background texture as the camera shows it at gain 1 through an ideal
+/// lens (encoded RGB f32, row-major, 3 per pixel): 0 and up, where above 1 is
+/// tissue the light overexposes, which the sensor clips after the lens.
 pub(super) fn background(kind: Background, tissue: Tissue, seed: u64, w: u32, h: u32) -> Vec<f32> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (kind as u64 * 0x1000_0001));
     let organ = match kind {
@@ -220,12 +222,12 @@ pub(super) fn background(kind: Background, tissue: Tissue, seed: u64, w: u32, h:
     }
     let cos = light(&mut img, &depth, wu, hu, &look);
     highlights(&mut img, &mut rng, &look, &crest, &cos, &depth, wu, hu);
+    // the tissue's radiance is not bounded: where the light overexposes it,
+    // the sensor clips it, after the lens's vignetting (clamping here would
+    // turn an overexposed fold into a neutral grey-white wherever the
+    // vignetting then darkens it)
     for v in &mut img {
-        *v = if v.is_finite() {
-            v.clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
+        *v = if v.is_finite() { v.max(0.0) } else { 0.0 };
     }
     if tissue != Tissue::Organ {
         for px in img.chunks_exact_mut(3) {
@@ -472,7 +474,8 @@ mod tests {
     fn backgrounds_are_finite_deterministic_and_seeded() {
         for kind in Background::ALL {
             let a = background(kind, Tissue::Organ, 5, 160, 120);
-            assert!(a.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+            // overexposed tissue may exceed full scale: the sensor clips it
+            assert!(a.iter().all(|v| v.is_finite() && *v >= 0.0));
             assert_eq!(a, background(kind, Tissue::Organ, 5, 160, 120));
             let b = background(kind, Tissue::Organ, 6, 160, 120);
             let differ = a
@@ -621,7 +624,7 @@ mod tests {
         assert!(o[0] > o[2] + 0.1, "the colon is red: {o:?}");
         for tissue in Tissue::ALL {
             let img = background(Background::Colon, tissue, 2, 160, 120);
-            assert!(img.iter().all(|v| (0.0..=1.0).contains(v)), "{tissue:?}");
+            assert!(img.iter().all(|v| v.is_finite() && *v >= 0.0), "{tissue:?}");
             let (l0, l1) = (luma(&organ), luma(&img));
             // the texture stays: brightness follows the organ's pixel for pixel
             let n = l0.len() as f32;
