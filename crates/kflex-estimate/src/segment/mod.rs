@@ -82,7 +82,10 @@ pub struct SegmentParams {
     /// brightness of the region of interest (darker is lumen or shadow).
     pub min_relative_value: f32,
     /// A region whose darkest channel is above this is clipped specular light
-    /// and takes the class of the regions around it.
+    /// and takes the class of the regions around it. On a noisy frame a
+    /// clipped channel reads below full scale (by `σ/√(2π)` for noise σ):
+    /// this and [`SegmentParams::saturated_value`] then move down to stay
+    /// 0.02 below that.
     pub clip_value: f32,
     /// A region whose brightest channel is above this has lost its
     /// chromaticity to the sensor's clipping (bright tissue under a high
@@ -510,7 +513,7 @@ impl Segmenter {
         let sigma = noise_sigma(&region);
         let noise = p.merge_noise_z * sigma;
         merge(s, cols, rows, &scaled, noise);
-        classify(s, &p, cols, rows);
+        classify(s, &p, cols, rows, sigma);
         if p.fill_holes {
             graph::fill_holes(s);
         }
