@@ -54,10 +54,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some((min, median)) => (format!("{min:.3}"), format!("{median:.3}")),
         None => ("–".into(), "–".into()),
     };
-    for (goal, condition) in Condition::GOALS
+    for (label, condition) in Condition::GOALS
         .iter()
-        .map(|c| (true, *c))
-        .chain(Condition::BEYOND.iter().map(|c| (false, *c)))
+        .map(|c| ("", *c))
+        .chain(Condition::BEYOND.iter().map(|c| (" (past the goals)", *c)))
+        .chain(
+            Condition::TRAINING
+                .iter()
+                .map(|c| (" (IBJAE's training range)", *c)),
+        )
     {
         let (mut roi, mut distal, mut missed, mut under) = (Vec::new(), Vec::new(), 0, 0);
         let (mut worst, mut worst_distal) = (None, None);
@@ -99,11 +104,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         let (rmin, rmed) = fmt(min_median(&mut roi));
         let (dmin, dmed) = fmt(min_median(&mut distal));
-        let name = if goal {
-            condition.name()
-        } else {
-            format!("{} (past the goals)", condition.name())
-        };
+        let name = format!("{}{label}", condition.name());
         println!("| {name} | {missed} | {rmin} | {rmed} | {dmin} | {dmed} | {under} |");
         if std::env::var_os("KFLEX_WORST").is_some() {
             for (what, w) in [("ROI", worst), ("distal", worst_distal)] {

@@ -43,7 +43,9 @@ fn every_case_of_every_condition_meets_its_bound() {
     let mut bench = Bench::default();
     let mut segmenter = Segmenter::new(SegmentParams::default()).unwrap();
     let mut failures = Vec::new();
-    for (condition, roi_min, distal_min) in BOUNDS {
+    // and the edges of IBJAE's training ranges, at the goals
+    let training = Condition::TRAINING.map(|c| (c, matrix::GOAL_ROI, matrix::GOAL_DISTAL));
+    for (condition, roi_min, distal_min) in BOUNDS.into_iter().chain(training) {
         for case in cases() {
             match bench.score(&mut segmenter, case, condition) {
                 Ok(s) => {
@@ -105,14 +107,15 @@ fn no_instrument_only_when_there_is_none() {
 }
 
 /// Cases under a goal (ROI IoU 0.90 or distal 0.85, or no instrument found),
-/// at most, per condition in [`BOUNDS`]'s order, of the 45 on other
-/// backgrounds of the same organs (`Bench::seed_offset`): the bounds above
-/// were tuned on one background per organ, and these keep the segmentation
-/// from being tuned to it. As measured; goal 0 for each.
-const MOST_UNDER_GOAL: [(u64, [usize; 12]); 3] = [
-    (100, [0, 1, 1, 6, 10, 1, 0, 5, 0, 5, 0, 0]),
-    (200, [0, 0, 2, 4, 9, 2, 0, 6, 1, 6, 0, 0]),
-    (300, [0, 0, 5, 4, 6, 4, 0, 3, 0, 3, 0, 0]),
+/// at most, per condition in [`BOUNDS`]'s order then
+/// [`Condition::TRAINING`]'s, of the 45 on other backgrounds of the same
+/// organs (`Bench::seed_offset`): the bounds above were tuned on one
+/// background per organ, and these keep the segmentation from being tuned
+/// to it. As measured; goal 0 for each.
+const MOST_UNDER_GOAL: [(u64, [usize; 16]); 3] = [
+    (100, [0, 1, 1, 6, 10, 1, 0, 5, 0, 5, 0, 0, 0, 0, 0, 0]),
+    (200, [0, 0, 2, 4, 9, 2, 0, 6, 1, 6, 0, 0, 0, 0, 0, 1]),
+    (300, [0, 0, 5, 4, 6, 4, 0, 3, 0, 3, 0, 0, 0, 0, 0, 0]),
 ];
 
 fn under_goal_on_other_backgrounds(offset: u64) {
@@ -124,7 +127,8 @@ fn under_goal_on_other_backgrounds(offset: u64) {
     bench.seed_offset = offset;
     let mut segmenter = Segmenter::new(SegmentParams::default()).unwrap();
     let mut failures = Vec::new();
-    for ((condition, _, _), &most) in BOUNDS.iter().zip(most) {
+    let conditions = BOUNDS.iter().map(|b| &b.0).chain(&Condition::TRAINING);
+    for (condition, &most) in conditions.zip(most) {
         let under = cases()
             .into_iter()
             .filter(

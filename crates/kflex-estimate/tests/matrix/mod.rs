@@ -62,6 +62,17 @@ impl Condition {
         Condition::Tissue(Tissue::BlueGreen),
         Condition::Tissue(Tissue::Yellow),
     ];
+    /// The edges of the ranges IBJAE's training frames are drawn from
+    /// (`kflex_control::ImagePairsConfig::default`: gain 0.7–1.3, noise σ up
+    /// to 0.02, blur up to 1.5 px): reported, and asserted over other
+    /// backgrounds (the pairs are drawn on many).
+    #[allow(dead_code)] // read by the examples and one test
+    pub const TRAINING: [Condition; 4] = [
+        Condition::Gain(0.7),
+        Condition::Gain(1.3),
+        Condition::Noise(0.02),
+        Condition::Blur(1.5),
+    ];
     /// Past the goals: reported, not asserted.
     pub const BEYOND: [Condition; 4] = [
         Condition::Tint(0.35),
