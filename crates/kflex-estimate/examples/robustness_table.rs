@@ -81,8 +81,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     {
                         worst_distal = Some((d, offset, case));
                     }
-                    let short = s.roi < matrix::GOAL_ROI
-                        || s.distal.is_some_and(|d| d < matrix::GOAL_DISTAL);
+                    let short = !s.meets(matrix::GOAL_ROI, matrix::GOAL_DISTAL);
                     if short && std::env::var_os("KFLEX_UNDER").is_some() {
                         eprintln!(
                             "  under: {} offset {offset} {case:?} {s:?}",
@@ -94,6 +93,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     distal.extend(s.distal);
                 }
                 Err(EstimateError::NoInstrument { .. }) => {
+                    if std::env::var_os("KFLEX_UNDER").is_some() {
+                        eprintln!(
+                            "  under: {} offset {offset} {case:?} no instrument",
+                            condition.name()
+                        );
+                    }
                     missed += 1;
                     under += 1;
                     roi.push(0.0);
@@ -118,16 +123,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut false_found = Vec::new();
     let tissues = Tissue::ALL;
     let mut total = 0;
-    for background in Background::ALL {
-        for tissue in tissues {
-            for seed in 0..3 {
-                total += 1;
-                let f = bench.empty_frame(background, tissue, seed);
-                if let Ok(seg) = segmenter.segment(&f.rgb, f.width, f.height, bench.roi) {
-                    false_found.push(format!(
-                        "{background:?} {tissue:?} seed {seed}: {} px",
-                        seg.full.count()
-                    ));
+    // the same backgrounds as the cases: each offset's
+    for &offset in &offsets {
+        bench.seed_offset = offset;
+        for background in Background::ALL {
+            for tissue in tissues {
+                for seed in 0..3 {
+                    total += 1;
+                    let f = bench.empty_frame(background, tissue, seed);
+                    if let Ok(seg) = segmenter.segment(&f.rgb, f.width, f.height, bench.roi) {
+                        false_found.push(format!(
+                            "{background:?} {tissue:?} seed {seed} offset {offset}: {} px",
+                            seg.full.count()
+                        ));
+                    }
                 }
             }
         }

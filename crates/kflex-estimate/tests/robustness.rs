@@ -49,7 +49,7 @@ fn every_case_of_every_condition_meets_its_bound() {
         for case in cases() {
             match bench.score(&mut segmenter, case, condition) {
                 Ok(s) => {
-                    if s.roi < roi_min || s.distal.is_some_and(|d| d < distal_min) {
+                    if !s.meets(roi_min, distal_min) {
                         failures.push(format!("{}: {case:?}: {s:?}", condition.name()));
                     }
                 }
@@ -127,17 +127,20 @@ fn under_goal_on_other_backgrounds(offset: u64) {
     bench.seed_offset = offset;
     let mut segmenter = Segmenter::new(SegmentParams::default()).unwrap();
     let mut failures = Vec::new();
-    let conditions = BOUNDS.iter().map(|b| &b.0).chain(&Condition::TRAINING);
-    for (condition, &most) in conditions.zip(most) {
+    let conditions: Vec<&Condition> = BOUNDS
+        .iter()
+        .map(|b| &b.0)
+        .chain(&Condition::TRAINING)
+        .collect();
+    assert_eq!(conditions.len(), most.len(), "a count for every condition");
+    for (condition, &most) in conditions.into_iter().zip(most) {
         let under = cases()
             .into_iter()
             .filter(
                 |&case| match bench.score(&mut segmenter, case, *condition) {
-                    Ok(s) => {
-                        s.roi < matrix::GOAL_ROI
-                            || s.distal.is_some_and(|d| d < matrix::GOAL_DISTAL)
-                    }
-                    Err(_) => true,
+                    Ok(s) => !s.meets(matrix::GOAL_ROI, matrix::GOAL_DISTAL),
+                    Err(EstimateError::NoInstrument { .. }) => true,
+                    Err(e) => panic!("{}: {case:?}: {e}", condition.name()),
                 },
             )
             .count();

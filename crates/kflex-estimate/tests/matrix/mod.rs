@@ -127,6 +127,15 @@ pub struct Score {
     pub distal: Option<f64>,
 }
 
+impl Score {
+    /// Whether the case reaches `roi_min` in the region and, where scored,
+    /// `distal_min` on the bend and gripper.
+    #[allow(dead_code)] // not every user of the module reads it
+    pub fn meets(&self, roi_min: f64, distal_min: f64) -> bool {
+        self.roi >= roi_min && self.distal.is_none_or(|d| d >= distal_min)
+    }
+}
+
 /// A case of the matrix.
 #[derive(Debug, Clone, Copy)]
 pub struct Case {
@@ -276,13 +285,14 @@ impl Bench {
         Ok(Score { roi: iou, distal })
     }
 
-    /// A frame of `background` without the instrument, its tissue coloured `tissue`.
+    /// A frame of `background` without the instrument, its tissue coloured
+    /// `tissue`, its background seed `seed` moved by [`Bench::seed_offset`].
     pub fn empty_frame(&mut self, background: Background, tissue: Tissue, seed: u64) -> Frame {
         let shape = InstrumentShape::default();
         let params = FrameParams {
             background,
             tissue,
-            seed,
+            seed: seed.wrapping_add(self.seed_offset),
             ..FrameParams::default()
         };
         self.renderer
