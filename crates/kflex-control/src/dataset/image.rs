@@ -19,8 +19,11 @@ use crate::error::{ControlError, Result};
 /// [`ImagePairsConfig::database`]'s output for a given configuration: it
 /// changes with any change to the frames' or silhouettes' pixels (the
 /// renderer, the lens, the segmentation). 2: overexposed tissue is clipped
-/// by the sensor, after the lens, not before it.
-pub const IMAGE_GENERATOR_VERSION: u32 = 2;
+/// by the sensor, after the lens, not before it, and its colour counts toward
+/// the tissue's in the segmentation. 3: the segmentation's clipping
+/// thresholds move down with a noisy frame's measured σ (a frame whose
+/// measured σ is above 0.025; version 2's data were made before that change).
+pub const IMAGE_GENERATOR_VERSION: u32 = 3;
 
 /// Side of IBJAE's silhouettes, px.
 const SIDE: u32 = 48;

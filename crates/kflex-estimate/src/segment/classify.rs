@@ -32,6 +32,30 @@ const CLIP_NOISE: f32 = 0.398_942_3;
 /// five cases, where bright steel reads just under 0.97.
 const CLIP_MARGIN: f32 = 0.02;
 
+/// The lowest the clipping thresholds move to with the frame's noise: where
+/// `CLIP_NOISE` σ + `CLIP_MARGIN` reaches it, σ = 0.2, twice the noise the
+/// segmentation is specified for. Past that the estimate of σ is no guide
+/// (it also reads texture), and bright unclipped steel (up to 0.97) would
+/// count as clipped and take its neighbours' class.
+const CLIP_FLOOR: f32 = 0.9;
+
+/// The clipping thresholds `(clip_value, saturated_value)` on a frame of
+/// noise `sigma`: each at most `CLIP_MARGIN` below a clipped channel's mean
+/// reading, `1 − σ/√(2π)`, and never below `CLIP_FLOOR` (nor above its
+/// setting).
+fn clip_thresholds(clip_value: f32, saturated_value: f32, sigma: f32) -> (f32, f32) {
+    let clipped_mean = (1.0 - CLIP_NOISE * sigma - CLIP_MARGIN).max(CLIP_FLOOR);
+    (
+        clip_value.min(clipped_mean),
+        saturated_value.min(clipped_mean),
+    )
+}
+
+/// The darkest channel of a mean colour.
+fn darkest(m: [f32; 3]) -> f32 {
+    m[0].min(m[1]).min(m[2])
+}
+
 /// Bins of the chromaticity histograms, over `[-1, 1]`.
 const BINS: usize = 512;
 
@@ -130,7 +154,10 @@ fn near_line(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], width: f32) -> boo
 ///    [`SegmentParams::saturated_value`] (a clipped channel: no trustworthy
 ///    chromaticity), or which are highlights (small, brighter than the
 ///    median and [`SegmentParams::highlight_ratio`] times brighter than the
-///    regions around them) are left for step 5;
+///    regions around them) are left for step 5; on a noisy frame both
+///    thresholds move down with the mean a clipped channel reads,
+///    `1 − σ/√(2π)` for the frame's measured σ, staying `CLIP_MARGIN` below
+///    it and above `CLIP_FLOOR`;
 /// 3. the tissue colour `T` starts at the median chromaticity of the bright
 ///    regions on the region of interest's border where they hold more than
 ///    60 % of it (the instrument enters from one side, so it holds a
@@ -142,8 +169,11 @@ fn near_line(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], width: f32) -> boo
 ///    (for a region brighter than [`SegmentParams::bright_ratio`] times the
 ///    median: where it lies within [`SegmentParams::bright_metal_share`] of
 ///    the way from `M` to `T`);
-///    then `T` becomes the pixel-weighted median of the tissue class and the
-///    regions are sorted again (two rounds);
+///    then `T` becomes the pixel-weighted median of the tissue class, with
+///    the regions left for step 5 whose darkest channel does not clip and
+///    whose chromaticity lies more than [`SegmentParams::grow_separation`]
+///    from `M` (overexposed tissue keeps a colour, paler than its own and
+///    never the metal's), and the regions are sorted again (two rounds);
 ///    then (4b) a region that borders the instrument joins it where it lies
 ///    within [`SegmentParams::grow_share`] of the way from `M` to `T`, near
 ///    the line through them, and is about as bright as the instrument it
@@ -187,21 +217,15 @@ pub(super) fn classify(
     // with it: the mean of min(1, 1 + n) for n ~ N(0, σ) is 1 − σ/√(2π);
     // where that falls to within `CLIP_MARGIN` of the thresholds, they move
     // down with it (`saturated_value` 0.97 for σ above 0.025, `clip_value`
-    // 0.94 above 0.1)
-    let clipped_mean = 1.0 - CLIP_NOISE * sigma - CLIP_MARGIN;
-    let (clip_value, saturated_value) = (
-        p.clip_value.min(clipped_mean),
-        p.saturated_value.min(clipped_mean),
-    );
+    // 0.94 above 0.1), to `CLIP_FLOOR` at most (σ 0.2)
+    let (clip_value, saturated_value) = clip_thresholds(p.clip_value, p.saturated_value, sigma);
     region_class.clear();
     region_class.resize(regions.len(), DARK);
     for &i in roots.iter() {
         let m = regions[i as usize].mean;
         region_class[i as usize] = if m[0] + m[1] + m[2] < min_l {
             DARK
-        } else if m[0].min(m[1]).min(m[2]) > clip_value
-            || m[0].max(m[1]).max(m[2]) > saturated_value
-        {
+        } else if darkest(m) > clip_value || m[0].max(m[1]).max(m[2]) > saturated_value {
             CLIPPED
         } else {
             BRIGHT
@@ -218,7 +242,7 @@ pub(super) fn classify(
             if *c == BRIGHT
                 && r.count < p.highlight_max * total
                 && r.lum > median_l
-                && r.mean.iter().copied().fold(f32::INFINITY, f32::min) > p.highlight_min_value
+                && darkest(r.mean) > p.highlight_min_value
             {
                 *c = CANDIDATE;
                 any = true;
@@ -346,7 +370,8 @@ pub(super) fn classify(
         for &i in roots.iter() {
             let r = &regions[i as usize];
             if region_class[i as usize] == CLIPPED
-                && r.mean.iter().copied().fold(f32::INFINITY, f32::min) <= clip_value
+                && r.mean[0].max(r.mean[1]).max(r.mean[2]) > saturated_value
+                && darkest(r.mean) <= clip_value
                 && dist2(r.chroma, metal) > p.grow_separation.powi(2)
             {
                 hx.add(r.chroma[0], -1.0, 1.0, f64::from(r.count));
@@ -428,5 +453,41 @@ pub(super) fn classify(
     Classes {
         instrument: found,
         tissue,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The thresholds stay at their settings on a clean frame, follow a
+    /// clipped channel's mean down with the noise, and stop at the floor
+    /// however large the noise estimate.
+    #[test]
+    fn clip_thresholds_follow_the_noise_down_to_the_floor() {
+        let (clip, saturated) = (0.94, 0.97);
+        assert_eq!(clip_thresholds(clip, saturated, 0.0), (clip, saturated));
+        assert_eq!(clip_thresholds(clip, saturated, 0.02), (clip, saturated));
+        // σ 0.1: a clipped channel reads 0.960 on average; 0.02 below it
+        let (c, s) = clip_thresholds(clip, saturated, 0.1);
+        assert!((s - (1.0 - 0.398_942_3 * 0.1 - 0.02)).abs() < 1e-6, "{s}");
+        assert!((c - clip.min(s)).abs() < 1e-6, "{c}");
+        let mut last = (clip, saturated);
+        for k in 0..=200 {
+            let sigma = k as f32 * 0.01; // up to 2, past anything a frame gives
+            let (c, s) = clip_thresholds(clip, saturated, sigma);
+            assert!(c <= last.0 && s <= last.1, "σ {sigma}: not monotone");
+            assert!(c >= CLIP_FLOOR && s >= CLIP_FLOOR, "σ {sigma}: {c} {s}");
+            last = (c, s);
+        }
+        assert_eq!(last, (CLIP_FLOOR, CLIP_FLOOR));
+        // a setting below the floor is kept as set
+        assert_eq!(clip_thresholds(0.5, 0.6, 1.0), (0.5, 0.6));
+    }
+
+    #[test]
+    fn darkest_is_the_least_channel() {
+        assert_eq!(darkest([0.3, 0.1, 0.2]), 0.1);
+        assert_eq!(darkest([0.9, 0.95, 0.7]), 0.7);
     }
 }

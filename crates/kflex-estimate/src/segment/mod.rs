@@ -73,6 +73,9 @@ pub struct SegmentParams {
     /// The growth of [`SegmentParams::grow_share`] applies only where the
     /// tissue's chromaticity lies at least this far from the metal's: on
     /// grey, pale or white tissue a share of the way is within the noise.
+    /// Also how far from the metal's a region left for the specular step
+    /// (a clipped channel) must lie for its colour to count toward the
+    /// tissue's.
     pub grow_separation: f32,
     /// A region grows into the instrument only where it is at most this many
     /// times as bright as the instrument it borders (a far gripper is no
