@@ -34,7 +34,8 @@ pub enum JointArg {
 
 #[derive(Debug, Args)]
 pub struct RunArgs {
-    /// Joint-angle estimator in the loop (kbjae, ibjae and lbhjae are not built yet).
+    /// Joint-angle estimator in the loop without --scenario: `none` (the plant alone); the
+    /// trained estimators run through --scenario and --estimators.
     #[arg(long, value_enum, default_value = "none")]
     estimator: Estimator,
     /// Sheath configurations, deg, comma separated.
