@@ -326,6 +326,25 @@ def test_ibjae_reads_rendered_frames_near_their_pose(models, camera, paper_db) -
     assert (a.theta_deg, a.distance) == (b.theta_deg, b.distance)
 
 
+def test_ibjae_checks_its_readings_against_the_nominal_silhouette_with_a_camera(
+    models, camera, paper_db
+) -> None:
+    plain = kflex.Ibjae(models / "scnn_test.onnx", [paper_db])
+    checked = kflex.Ibjae(models / "scnn_test.onnx", [paper_db], camera=camera)
+    occlusion = {"fraction": 0.4, "position": 0.5, "region": kflex.Roi.paper(camera).to_dict()}
+    for theta in (5.0, 30.0):
+        shape = kflex.Instrument.kflex().shape(theta, 10.0)
+        clear = kflex.SceneRenderer().render(camera, shape).rgb
+        taped = kflex.SceneRenderer().render(camera, shape, kflex.FrameParams(occlusion=occlusion)).rgb
+        p, c = plain.read(clear, [0]), checked.read(clear, [0])
+        assert p.silhouette_iou is None and "silhouette_iou=None" in repr(p)
+        assert (c.theta_deg, c.distance, c.sigma_deg) == (p.theta_deg, p.distance, p.sigma_deg)
+        assert 0.85 <= c.silhouette_iou <= 1.0, c
+        t = checked.read(taped, [0])
+        # tape over 40 % of the instrument: the reading does not explain the silhouette
+        assert t.silhouette_iou < 0.85 and t.sigma_deg >= 45.0, t
+
+
 def test_ibjae_gives_none_without_an_instrument_and_refuses_bad_frames(models, camera, paper_db) -> None:
     ibjae = kflex.Ibjae(models / "scnn_test.onnx", [paper_db])
     k = camera.intrinsics

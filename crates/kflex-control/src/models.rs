@@ -11,10 +11,10 @@ use crate::error::{ControlError, Result};
 use crate::estimators::IbjaeAlone;
 use crate::grid::EstimatorKind;
 use kflex_estimate::{
-    AdaptiveKalman, AdaptiveParams, Ibjae, KalmanParams, Kbjae, Lbhjae, PaperKalman, Scnn,
-    SegmentParams, load_databases,
+    AdaptiveKalman, AdaptiveParams, DEFAULT_MIN_SILHOUETTE_IOU, Ibjae, KalmanParams, Kbjae, Lbhjae,
+    PaperKalman, Scnn, SegmentParams, load_databases,
 };
-use kflex_model::Camera;
+use kflex_model::{Camera, Instrument};
 
 /// Where kflex's trained models ship, relative to the project's root.
 pub const MODELS_DIR: &str = "assets/models";
@@ -76,7 +76,14 @@ impl ModelDir {
     fn ibjae(&self, camera: &Camera) -> Result<Ibjae> {
         let scnn = Scnn::load(&self.scnn(), 1)?;
         let bands = load_databases(&self.databases(), camera)?;
-        Ok(Ibjae::new(scnn, SegmentParams::default(), bands)?)
+        // the databases are the nominal instrument's through `camera`
+        Ok(
+            Ibjae::new(scnn, SegmentParams::default(), bands)?.with_silhouette_check(
+                camera,
+                &Instrument::kflex(),
+                DEFAULT_MIN_SILHOUETTE_IOU,
+            )?,
+        )
     }
 
     /// Makes each of `kinds` once (not `None`, which needs no model), so

@@ -293,3 +293,93 @@ fn lbhjae_names_the_window_its_next_frame_must_cover() {
     // no band holds 30 mm: no frame to read
     assert_eq!(lbhjae.frame_window(30.0), None);
 }
+
+/// With the silhouette check each reading carries the IoU between the
+/// segmented silhouette and the nominal silhouette of the pose it reads
+/// (recomputed here from the public pieces), a reading under the least IoU
+/// reports at least `UNEXPLAINED_SIGMA_DEG`, and tape over 40 % of the
+/// instrument lowers the IoU well below the clear frame's at the same pose.
+#[test]
+fn the_silhouette_check_scores_the_pose_read_and_flags_what_it_does_not_explain() {
+    use kflex_estimate::{DEFAULT_MIN_SILHOUETTE_IOU, SCNN_SIDE, UNEXPLAINED_SIGMA_DEG, segment};
+    use kflex_model::{Mask, Occlusion, Rasterizer};
+
+    let camera = Camera::default();
+    let instrument = Instrument::kflex();
+    let mut plain = ibjae(&camera);
+    let mut checked = ibjae(&camera)
+        .with_silhouette_check(&camera, &instrument, DEFAULT_MIN_SILHOUETTE_IOU)
+        .unwrap();
+    let mut lenient = ibjae(&camera)
+        .with_silhouette_check(&camera, &instrument, 0.0)
+        .unwrap();
+    let roi = paper_band(&camera).roi;
+    let small = camera.with_intrinsics(
+        roi.intrinsics(&camera.intrinsics, SCNN_SIDE, SCNN_SIDE)
+            .unwrap(),
+    );
+    let mut renderer = SceneRenderer::new();
+    let mut raster = Rasterizer::new();
+    for theta in [5.0, 17.0, 30.0, 44.0] {
+        let shape = instrument.shape(theta, 10.0).unwrap();
+        let mut iou_of = |occlusion: Option<Occlusion>| {
+            let params = FrameParams {
+                occlusion: occlusion.map(|o| o.within(roi)),
+                ..FrameParams::default()
+            };
+            let f = renderer.render(&camera, &shape, &params).unwrap();
+            let view = RgbView::packed(&f.rgb, f.width, f.height).unwrap();
+            let p = plain.read(&view, &[0]).unwrap().expect("an instrument");
+            let c = checked.read(&view, &[0]).unwrap().expect("an instrument");
+            let l = lenient.read(&view, &[0]).unwrap().expect("an instrument");
+            assert_eq!(p.silhouette_iou, None);
+            assert_eq!(
+                (c.theta_deg, c.translation_mm, c.distance, c.band),
+                (p.theta_deg, p.translation_mm, p.distance, p.band)
+            );
+            // the IoU, from the segmentation of the region and the nominal
+            // silhouette of the pose read
+            let mut crop = Vec::new();
+            for y in roi.y0..roi.y0 + roi.height {
+                let start = 3 * (y * f.width + roi.x0) as usize;
+                crop.extend_from_slice(&f.rgb[start..start + 3 * roi.width as usize]);
+            }
+            let s = segment(
+                &crop,
+                roi.width,
+                roi.height,
+                Roi::whole(roi.width, roi.height),
+                &SegmentParams::default(),
+            )
+            .unwrap();
+            let mut nominal = Mask::new(SCNN_SIDE, SCNN_SIDE).unwrap();
+            let read = instrument.shape(p.theta_deg, p.translation_mm).unwrap();
+            raster.silhouette(&small, &read, &mut nominal).unwrap();
+            let iou = s.small.iou(&nominal).unwrap();
+            assert_eq!(c.silhouette_iou, Some(iou), "θ = {theta}");
+            assert_eq!(l.silhouette_iou, Some(iou));
+            // flagged exactly where the IoU is under the least; else as without the check
+            if iou < DEFAULT_MIN_SILHOUETTE_IOU {
+                assert!(c.sigma_deg >= UNEXPLAINED_SIGMA_DEG, "{c:?}");
+            } else {
+                assert_eq!(c.sigma_deg, p.sigma_deg);
+            }
+            assert_eq!(l.sigma_deg, p.sigma_deg, "a least IoU of 0 flags nothing");
+            iou
+        };
+        let clear = iou_of(None);
+        let taped = iou_of(Some(Occlusion::new(0.4, 0.5)));
+        assert!(
+            clear >= DEFAULT_MIN_SILHOUETTE_IOU,
+            "θ = {theta}: clear {clear}"
+        );
+        assert!(
+            taped < DEFAULT_MIN_SILHOUETTE_IOU,
+            "θ = {theta}: taped {taped}"
+        );
+    }
+    assert!(matches!(
+        ibjae(&camera).with_silhouette_check(&camera, &instrument, 1.5),
+        Err(EstimateError::OutOfRange(_))
+    ));
+}

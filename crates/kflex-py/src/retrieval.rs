@@ -6,11 +6,11 @@ use std::path::PathBuf;
 use std::sync::{Mutex, PoisonError};
 
 use kflex_estimate::{
-    AdaptiveKalman, BandDatabase, FeatureIndex, Fusion, Ibjae, IbjaeReading, IndexParams, Kbjae,
-    Lbhjae, Neighbour, PaperKalman, Pose, ProjectionDims, RgbView, Scnn, SegmentParams,
-    build_band_database,
+    AdaptiveKalman, BandDatabase, DEFAULT_MIN_SILHOUETTE_IOU, FeatureIndex, Fusion, Ibjae,
+    IbjaeReading, IndexParams, Kbjae, Lbhjae, Neighbour, PaperKalman, Pose, ProjectionDims,
+    RgbView, Scnn, SegmentParams, build_band_database,
 };
-use kflex_model::Command;
+use kflex_model::{Camera, Command, Instrument};
 use numpy::IntoPyArray;
 use numpy::ndarray::Array2;
 use pyo3::prelude::*;
@@ -300,23 +300,37 @@ fn band_databases(databases: &[PyRef<'_, PyFeatureIndex>]) -> Result<Vec<BandDat
         .collect()
 }
 
-/// IBJAE over `databases` with the SCNN at `scnn` (a path).
+/// IBJAE over `databases` with the SCNN at `scnn` (a path); with `camera`
+/// (the nominal one the databases were rendered through), each reading is
+/// checked against the nominal `kflex` instrument's silhouette of its pose.
 fn load_ibjae(
     py: Python<'_>,
     scnn: PathBuf,
     databases: &[PyRef<'_, PyFeatureIndex>],
     segment: Option<PySegmentParams>,
     threads: usize,
+    camera: Option<Camera>,
 ) -> Result<Ibjae> {
     let bands = band_databases(databases)?;
     let segment = segment.map_or_else(SegmentParams::default, |p| p.inner);
-    Ok(py.detach(|| Ibjae::new(Scnn::load(&scnn, threads)?, segment, bands))?)
+    Ok(py.detach(|| {
+        let ibjae = Ibjae::new(Scnn::load(&scnn, threads)?, segment, bands)?;
+        match camera {
+            Some(c) => {
+                ibjae.with_silhouette_check(&c, &Instrument::kflex(), DEFAULT_MIN_SILHOUETTE_IOU)
+            }
+            None => Ok(ibjae),
+        }
+    })?)
 }
 
 /// What IBJAE read from one frame: the nearest database silhouette's pose
 /// (`theta_deg`, `translation_mm`), its feature `distance`, `sigma_deg`
 /// (that distance in degrees of bend, at least half the grid's step: the
-/// reading's uncertainty) and `band` (which database answered).
+/// reading's uncertainty; at least 45 where the silhouette check finds the
+/// reading does not explain the silhouette), `band` (which database
+/// answered) and `silhouette_iou` (with the check: the IoU between the
+/// segmented silhouette and the nominal one of the pose read; else `None`).
 #[pyclass(name = "IbjaeReading", module = "kflex", frozen, get_all)]
 pub struct PyIbjaeReading {
     /// Bend, deg.
@@ -329,14 +343,23 @@ pub struct PyIbjaeReading {
     sigma_deg: f64,
     /// Position of the database in the list IBJAE was given.
     band: usize,
+    /// IoU with the nominal silhouette of the pose read (with the check).
+    silhouette_iou: Option<f64>,
 }
 
 #[pymethods]
 impl PyIbjaeReading {
     fn __repr__(&self) -> String {
         format!(
-            "IbjaeReading(theta_deg={}, translation_mm={}, distance={}, sigma_deg={}, band={})",
-            self.theta_deg, self.translation_mm, self.distance, self.sigma_deg, self.band
+            "IbjaeReading(theta_deg={}, translation_mm={}, distance={}, sigma_deg={}, band={}, \
+             silhouette_iou={})",
+            self.theta_deg,
+            self.translation_mm,
+            self.distance,
+            self.sigma_deg,
+            self.band,
+            self.silhouette_iou
+                .map_or_else(|| "None".to_string(), |v| v.to_string())
         )
     }
 }
@@ -349,6 +372,7 @@ impl From<IbjaeReading> for PyIbjaeReading {
             distance: r.distance,
             sigma_deg: r.sigma_deg,
             band: r.band,
+            silhouette_iou: r.silhouette_iou,
         }
     }
 }
@@ -368,18 +392,23 @@ impl PyIbjae {
     /// copied) and the segmentation thresholds `segment`. Raises
     /// `ValueError` when a database was embedded by another SCNN, there are
     /// none, or one lacks the metadata IBJAE needs (or has it out of range),
-    /// and as `Scnn.load`.
+    /// and as `Scnn.load`. With `camera` (the nominal camera the databases
+    /// were rendered through) each reading is checked against the nominal
+    /// silhouette of the pose it reads (`silhouette_iou`; under 0.85 its
+    /// `sigma_deg` is at least 45).
     #[new]
-    #[pyo3(signature = (scnn, databases, segment = None, threads = 1))]
+    #[pyo3(signature = (scnn, databases, segment = None, threads = 1, camera = None))]
     fn py_new(
         py: Python<'_>,
         scnn: PathBuf,
         databases: Vec<PyRef<'_, PyFeatureIndex>>,
         segment: Option<PySegmentParams>,
         threads: usize,
+        camera: Option<PyRef<'_, PyCamera>>,
     ) -> Result<Self> {
+        let camera = camera.map(|c| c.inner);
         Ok(Self {
-            inner: load_ibjae(py, scnn, &databases, segment, threads)?,
+            inner: load_ibjae(py, scnn, &databases, segment, threads, camera)?,
         })
     }
 
@@ -443,9 +472,10 @@ impl PyLbhjae {
     /// (paths), IBJAE's `databases` (as for `Ibjae`), and the fusion
     /// filter's parameters `fusion`: `KalmanParams` for the paper's filter,
     /// `AdaptiveParams` for the adaptive one. Raises as `Kbjae.load` and
-    /// `Ibjae`, `RangeError` for a filter parameter out of range.
+    /// `Ibjae`, `RangeError` for a filter parameter out of range; `camera`
+    /// as for `Ibjae` (the silhouette check).
     #[new]
-    #[pyo3(signature = (kbjae, scnn, databases, fusion, segment = None))]
+    #[pyo3(signature = (kbjae, scnn, databases, fusion, segment = None, camera = None))]
     fn py_new(
         py: Python<'_>,
         kbjae: PathBuf,
@@ -453,7 +483,9 @@ impl PyLbhjae {
         databases: Vec<PyRef<'_, PyFeatureIndex>>,
         fusion: &Bound<'_, PyAny>,
         segment: Option<PySegmentParams>,
+        camera: Option<PyRef<'_, PyCamera>>,
     ) -> Result<Self> {
+        let camera = camera.map(|c| c.inner);
         let filter: Box<dyn Fusion + Send> = if let Ok(p) = fusion.extract::<PyKalmanParams>() {
             Box::new(PaperKalman::new(p.inner)?)
         } else if let Ok(p) = fusion.extract::<PyAdaptiveParams>() {
@@ -464,7 +496,7 @@ impl PyLbhjae {
                 fusion.get_type().name()?
             )));
         };
-        let ibjae = load_ibjae(py, scnn, &databases, segment, 1)?;
+        let ibjae = load_ibjae(py, scnn, &databases, segment, 1, camera)?;
         let kbjae = py.detach(|| Kbjae::load(&kbjae))?;
         Ok(Self {
             inner: Mutex::new(Lbhjae::new(kbjae, ibjae, filter)),

@@ -113,13 +113,16 @@ const INITIAL_RATE_SIGMA: f64 = 100.0;
 /// **Gate.** An IBJAE measurement with `ν²/S > gate`, or one whose own
 /// uncertainty is above `max_ibjae_sigma_deg`, is rejected
 /// ([`SensorUse::Gated`]): under distal occlusion the nearest silhouette can
-/// be far from the truth. Its innovation still enters the noise average,
-/// capped at `gate · S`, so a camera that stays inconsistent is trusted less
-/// rather than ignored forever; and while measurements are rejected the
-/// prior's uncertainty grows, which opens the gate again.
+/// be far from the truth. A gated measurement's innovation still enters the
+/// noise average, capped at `gate · S`, so a camera that stays inconsistent
+/// is trusted less rather than ignored forever; and while measurements are
+/// rejected the prior's uncertainty grows, which opens the gate again.
+/// IBJAE's silhouette check (`Ibjae::with_silhouette_check`) marks
+/// a reading whose silhouette it does not explain (tape) as too uncertain.
 ///
-/// The filter starts at the first measurement (θ from IBJAE if there is one,
-/// else from KBJAE); before it the estimate is 0 with a large covariance.
+/// The filter starts at the first measurement (θ from IBJAE if there is one
+/// that is not too uncertain, else from KBJAE); before it the estimate is 0
+/// with a large covariance.
 ///
 /// # Examples
 /// ```
@@ -193,7 +196,13 @@ impl AdaptiveKalman {
     }
 
     fn start(&mut self, m: &Measurements) {
-        let (theta, i) = match (m.ibjae_deg, m.kbjae_deg) {
+        // a camera reading that reports itself too uncertain starts nothing
+        // (under tape it can be far off, and the filter would then take
+        // KBJAE's disagreement for its bias)
+        let sure = m
+            .ibjae_sigma_deg
+            .is_none_or(|sg| sg <= self.params.max_ibjae_sigma_deg);
+        let (theta, i) = match (m.ibjae_deg.filter(|_| sure), m.kbjae_deg) {
             (Some(z), _) => (z, 1),
             (None, Some(z)) => (z, 0),
             (None, None) => return,

@@ -702,6 +702,7 @@ class IbjaeReading:
     distance: float
     sigma_deg: float
     band: int
+    silhouette_iou: float | None
 
 class Ibjae:
     def __init__(
@@ -710,6 +711,7 @@ class Ibjae:
         databases: list[FeatureIndex],
         segment: SegmentParams | None = None,
         threads: int = 1,
+        camera: Camera | None = None,
     ) -> None: ...
     @property
     def bands(self) -> list[WorkingBand]: ...
@@ -729,6 +731,7 @@ class Lbhjae:
         databases: list[FeatureIndex],
         fusion: KalmanParams | AdaptiveParams,
         segment: SegmentParams | None = None,
+        camera: Camera | None = None,
     ) -> None: ...
     def step(
         self,
