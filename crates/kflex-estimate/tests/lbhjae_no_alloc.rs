@@ -1,6 +1,7 @@
 //! An LBHJAE tick allocates nothing in Rust once the first frame has been
-//! read (the embedding API): a counting allocator around ticks with
-//! and without frames, after warm-up ticks. ONNX Runtime's own C++
+//! read (the embedding API), the silhouette check included: a
+//! counting allocator around ticks with and without frames, after warm-up
+//! ticks. ONNX Runtime's own C++
 //! allocations are not Rust's and are not counted. (Its own test binary:
 //! the allocator is global.)
 #![cfg(all(feature = "onnx", feature = "index"))]
@@ -10,7 +11,9 @@ mod counting;
 #[path = "support/paper_ibjae.rs"]
 mod paper_ibjae;
 
-use kflex_estimate::{AdaptiveKalman, AdaptiveParams, Fusion, Kbjae, Lbhjae, RgbView};
+use kflex_estimate::{
+    AdaptiveKalman, AdaptiveParams, DEFAULT_MIN_SILHOUETTE_IOU, Fusion, Kbjae, Lbhjae, RgbView,
+};
 use kflex_model::{Camera, Command, FrameParams, Instrument, SceneRenderer};
 use paper_ibjae::{data, ibjae};
 
@@ -20,7 +23,9 @@ static GLOBAL: counting::Counting = counting::Counting;
 #[test]
 fn an_lbhjae_tick_allocates_nothing_after_the_first_frames() {
     let camera = Camera::default();
-    let ibjae = ibjae(&camera);
+    let ibjae = ibjae(&camera)
+        .with_silhouette_check(&camera, &Instrument::kflex(), DEFAULT_MIN_SILHOUETTE_IOU)
+        .unwrap();
     let kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
     let fusion: Box<dyn Fusion + Send> =
         Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap());
