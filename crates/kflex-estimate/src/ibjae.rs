@@ -440,7 +440,10 @@ impl Ibjae {
     ///
     /// # Errors
     /// [`EstimateError::OutOfRange`] for `min_iou` outside `[0, 1]`; as
-    /// [`Camera::validate`] for a bad camera.
+    /// [`Camera::validate`] for a bad camera;
+    /// [`EstimateError::ModelMismatch`] naming both cameras when a database
+    /// was rendered through another camera (its metadata, as
+    /// [`crate::load_databases`] checks it).
     pub fn with_silhouette_check(
         mut self,
         camera: &Camera,
@@ -449,6 +452,22 @@ impl Ibjae {
     ) -> Result<Self> {
         kflex_model::Bounds::closed(0.0, 1.0).check("min_silhouette_iou", min_iou)?;
         camera.validate()?;
+        let expected = camera_key(camera);
+        for b in &self.bands {
+            let found = b
+                .index
+                .metadata()
+                .get(keys::CAMERA)
+                .map_or("(none)", String::as_str);
+            if found != expected {
+                return Err(EstimateError::ModelMismatch {
+                    path: "feature database".to_string(),
+                    which: "camera",
+                    expected,
+                    found: found.to_string(),
+                });
+            }
+        }
         self.check = Some(SilhouetteCheck {
             camera: *camera,
             instrument: *instrument,
@@ -577,7 +596,15 @@ impl Ibjae {
                     reading.sigma_deg = reading.sigma_deg.max(UNEXPLAINED_SIGMA_DEG);
                 }
             }
-            if best.is_none_or(|b| reading.distance < b.distance) {
+            // an explained reading before an unexplained one, then the nearest
+            let min_iou = self.check.as_ref().map_or(0.0, |c| c.min_iou);
+            let rank = |r: &IbjaeReading| {
+                (
+                    r.silhouette_iou.is_some_and(|iou| iou < min_iou),
+                    r.distance,
+                )
+            };
+            if best.is_none_or(|b| rank(&reading) < rank(&b)) {
                 best = Some(reading);
             }
         }

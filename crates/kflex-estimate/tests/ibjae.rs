@@ -382,4 +382,13 @@ fn the_silhouette_check_scores_the_pose_read_and_flags_what_it_does_not_explain(
         ibjae(&camera).with_silhouette_check(&camera, &instrument, 1.5),
         Err(EstimateError::OutOfRange(_))
     ));
+    // a database rendered through another camera is refused, naming it
+    let other = camera.with_intrinsics(kflex_model::Intrinsics::full_hd());
+    assert!(matches!(
+        ibjae(&camera).with_silhouette_check(&other, &instrument, DEFAULT_MIN_SILHOUETTE_IOU),
+        Err(EstimateError::ModelMismatch {
+            which: "camera",
+            ..
+        })
+    ));
 }

@@ -118,7 +118,10 @@ const INITIAL_RATE_SIGMA: f64 = 100.0;
 /// is trusted less rather than ignored forever; and while measurements are
 /// rejected the prior's uncertainty grows, which opens the gate again.
 /// IBJAE's silhouette check (`Ibjae::with_silhouette_check`) marks
-/// a reading whose silhouette it does not explain (tape) as too uncertain.
+/// a reading whose silhouette it does not explain (tape) as too uncertain
+/// (45 deg at least); in the average that scales IBJAE's uncertainties an
+/// uncertainty above the rejection's counts as that, so a stretch of such
+/// readings makes the camera trusted less afterwards, not more.
 ///
 /// The filter starts at the first measurement (θ from IBJAE if there is one
 /// that is not too uncertain, else from KBJAE); before it the estimate is 0
@@ -273,6 +276,10 @@ impl AdaptiveKalman {
         let sample = ((nu * nu).min(self.params.gate * s) - hph).max(floor);
         match sigma {
             Some(sg) => {
+                // an uncertainty above the rejection's says only that the
+                // reading is no measurement (IBJAE's silhouette check reports
+                // at least 45 deg): it counts as the largest a measurement has
+                let sg = sg.min(self.params.max_ibjae_sigma_deg);
                 let scale = sample / (sg * sg).max(floor);
                 self.confidence_scale += alpha * (scale - self.confidence_scale);
             }
