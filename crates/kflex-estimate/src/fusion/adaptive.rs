@@ -125,7 +125,8 @@ const INITIAL_RATE_SIGMA: f64 = 100.0;
 ///
 /// The filter starts at the first measurement (θ from IBJAE if there is one
 /// that is not too uncertain, else from KBJAE); before it the estimate is 0
-/// with a large covariance.
+/// with a large covariance, and a camera reading too uncertain to start it
+/// (with no KBJAE, which LBHJAE always has) is reported `Missing`.
 ///
 /// # Examples
 /// ```
