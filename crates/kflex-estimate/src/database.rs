@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use kflex_model::{Camera, Instrument, WorkingRegions};
 
 use crate::error::{EstimateError, Result};
-use crate::ibjae::{BandDatabase, build_band_database, camera_key, keys};
+use crate::ibjae::{BandDatabase, build_band_database, camera_key, check_camera};
 use crate::index::FeatureIndex;
 use crate::scnn::Scnn;
 
@@ -188,18 +188,7 @@ pub fn load_databases(dir: &Path, camera: &Camera) -> Result<Vec<BandDatabase>> 
     for i in 0..count {
         let path = database_file(dir, i);
         let index = FeatureIndex::load(&path)?;
-        let found = index
-            .metadata()
-            .get(keys::CAMERA)
-            .map_or("(none)", String::as_str);
-        if found != expected {
-            return Err(EstimateError::ModelMismatch {
-                path: path.display().to_string(),
-                which: "camera",
-                expected,
-                found: found.to_string(),
-            });
-        }
+        check_camera(&index, &expected, &path.display().to_string())?;
         bands.push(BandDatabase::from_index(index)?);
     }
     Ok(bands)

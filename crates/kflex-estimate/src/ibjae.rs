@@ -378,6 +378,24 @@ pub(crate) fn camera_key(camera: &Camera) -> String {
     format!("{camera:?}")
 }
 
+/// Checks that the database `index` (named `path` in the error) was
+/// rendered through the camera whose [`camera_key`] is `expected`.
+pub(crate) fn check_camera(index: &FeatureIndex, expected: &str, path: &str) -> Result<()> {
+    let found = index
+        .metadata()
+        .get(keys::CAMERA)
+        .map_or("(none)", String::as_str);
+    if found == expected {
+        return Ok(());
+    }
+    Err(EstimateError::ModelMismatch {
+        path: path.to_string(),
+        which: "camera",
+        expected: expected.to_string(),
+        found: found.to_string(),
+    })
+}
+
 /// IBJAE: segmentation, SCNN embedding and retrieval in one.
 #[derive(Debug)]
 pub struct Ibjae {
@@ -454,19 +472,7 @@ impl Ibjae {
         camera.validate()?;
         let expected = camera_key(camera);
         for b in &self.bands {
-            let found = b
-                .index
-                .metadata()
-                .get(keys::CAMERA)
-                .map_or("(none)", String::as_str);
-            if found != expected {
-                return Err(EstimateError::ModelMismatch {
-                    path: "feature database".to_string(),
-                    which: "camera",
-                    expected,
-                    found: found.to_string(),
-                });
-            }
+            check_camera(&b.index, &expected, "feature database")?;
         }
         self.check = Some(SilhouetteCheck {
             camera: *camera,
