@@ -308,11 +308,7 @@ pub fn build_band_database(
         steps(t0, t1, theta_step_deg),
         steps(d0, d1, translation_step_mm),
     );
-    let small = camera.with_intrinsics(band.roi.intrinsics(
-        &camera.intrinsics,
-        SCNN_SIDE,
-        SCNN_SIDE,
-    )?);
+    let small = silhouette_camera(camera, band.roi)?;
     let mut raster = Rasterizer::new();
     let mut poses = Vec::with_capacity(nt * nd);
     let mut masks = Vec::with_capacity(nt * nd);
@@ -370,6 +366,12 @@ pub fn build_band_database(
     index.set_metadata(keys::CAMERA, camera_key(camera));
     index.set_metadata(keys::DISTANCE_PER_DEG, format!("{median}"));
     BandDatabase::from_index(index)
+}
+
+/// `camera` seeing only `roi`, resampled to the SCNN's 48×48: how a band's
+/// silhouettes are rendered, for its database and for IBJAE's silhouette check.
+fn silhouette_camera(camera: &Camera, roi: Roi) -> Result<Camera> {
+    Ok(camera.with_intrinsics(roi.intrinsics(&camera.intrinsics, SCNN_SIDE, SCNN_SIDE)?))
 }
 
 /// The camera as a database's metadata names it: every field, exactly
@@ -587,11 +589,7 @@ impl Ibjae {
             if let Some(c) = self.check.as_mut() {
                 // the nominal silhouette of the pose read, as the database
                 // rendered it (build_band_database)
-                let small = c.camera.with_intrinsics(roi.intrinsics(
-                    &c.camera.intrinsics,
-                    SCNN_SIDE,
-                    SCNN_SIDE,
-                )?);
+                let small = silhouette_camera(&c.camera, roi)?;
                 c.instrument
                     .shape_into(reading.theta_deg, reading.translation_mm, &mut c.shape)?;
                 c.mask.clear();

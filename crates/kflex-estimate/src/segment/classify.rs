@@ -56,6 +56,11 @@ fn darkest(m: [f32; 3]) -> f32 {
     m[0].min(m[1]).min(m[2])
 }
 
+/// The brightest channel of a mean colour.
+fn brightest(m: [f32; 3]) -> f32 {
+    m[0].max(m[1]).max(m[2])
+}
+
 /// Bins of the chromaticity histograms, over `[-1, 1]`.
 const BINS: usize = 512;
 
@@ -225,7 +230,7 @@ pub(super) fn classify(
         let m = regions[i as usize].mean;
         region_class[i as usize] = if m[0] + m[1] + m[2] < min_l {
             DARK
-        } else if darkest(m) > clip_value || m[0].max(m[1]).max(m[2]) > saturated_value {
+        } else if darkest(m) > clip_value || brightest(m) > saturated_value {
             CLIPPED
         } else {
             BRIGHT
@@ -370,7 +375,7 @@ pub(super) fn classify(
         for &i in roots.iter() {
             let r = &regions[i as usize];
             if region_class[i as usize] == CLIPPED
-                && r.mean[0].max(r.mean[1]).max(r.mean[2]) > saturated_value
+                && brightest(r.mean) > saturated_value
                 && darkest(r.mean) <= clip_value
                 && dist2(r.chroma, metal) > p.grow_separation.powi(2)
             {
@@ -486,8 +491,10 @@ mod tests {
     }
 
     #[test]
-    fn darkest_is_the_least_channel() {
+    fn darkest_and_brightest_are_the_least_and_greatest_channel() {
         assert_eq!(darkest([0.3, 0.1, 0.2]), 0.1);
         assert_eq!(darkest([0.9, 0.95, 0.7]), 0.7);
+        assert_eq!(brightest([0.3, 0.1, 0.2]), 0.3);
+        assert_eq!(brightest([0.9, 0.95, 0.7]), 0.95);
     }
 }
