@@ -3,8 +3,10 @@
 //! full 640×480 shaded frames, and the working region of a frame alone, the
 //! pose changing every call (the sweep of `export_shapes.rs`).
 //!
-//! `cargo run --release -p kflex-model --example render_rates [seconds]`
-//! (default 2 s per rate). Prints one line per rate, `kflex <what> <per_second>`.
+//! `cargo run --release -p kflex-model --example render_rates [seconds] [what]`
+//! (default 2 s per rate; `what`, one of `silhouette_48`, `frame_640x480`,
+//! `roi_window`, times that one alone, e.g. under a profiler). Prints one
+//! line per rate, `kflex <what> <per_second>`.
 
 use std::time::{Duration, Instant};
 
@@ -47,6 +49,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None => 2.0,
     };
     let span = Duration::from_secs_f64(seconds);
+    let only = std::env::args().nth(2);
+    let wanted = |what: &str| only.as_deref().is_none_or(|o| o == what);
+    if let Some(o) = only.as_deref()
+        && !["silhouette_48", "frame_640x480", "roi_window"].contains(&o)
+    {
+        return Err(format!("unknown rate {o:?}: silhouette_48, frame_640x480 or roi_window").into());
+    }
     let camera = Camera::default();
     let instrument = Instrument::kflex();
     let roi = Roi::paper(&camera)?;
@@ -56,26 +65,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|(theta, d)| instrument.shape(theta, d))
         .collect::<Result<Vec<_>, _>>()?;
 
-    let mut raster = Rasterizer::new();
-    let mut mask = Mask::new(48, 48)?;
-    let per_s = rate(&shapes, span, |shape| {
-        mask.clear();
-        raster.silhouette(&small, shape, &mut mask)
-    })?;
-    println!("kflex silhouette_48 {per_s:.1}");
+    if wanted("silhouette_48") {
+        let mut raster = Rasterizer::new();
+        let mut mask = Mask::new(48, 48)?;
+        let per_s = rate(&shapes, span, |shape| {
+            mask.clear();
+            raster.silhouette(&small, shape, &mut mask)
+        })?;
+        println!("kflex silhouette_48 {per_s:.1}");
+    }
 
     let params = FrameParams::default();
     let mut renderer = SceneRenderer::new();
-    let per_s = rate(&shapes, span, |shape| {
-        renderer.render(&camera, shape, &params).map(|_| ())
-    })?;
-    println!("kflex frame_640x480 {per_s:.1}");
+    if wanted("frame_640x480") {
+        let per_s = rate(&shapes, span, |shape| {
+            renderer.render(&camera, shape, &params).map(|_| ())
+        })?;
+        println!("kflex frame_640x480 {per_s:.1}");
+    }
 
-    let per_s = rate(&shapes, span, |shape| {
-        renderer
-            .render_window(&camera, shape, &params, roi)
-            .map(|_| ())
-    })?;
-    println!("kflex roi_window {per_s:.1}");
+    if wanted("roi_window") {
+        let per_s = rate(&shapes, span, |shape| {
+            renderer
+                .render_window(&camera, shape, &params, roi)
+                .map(|_| ())
+        })?;
+        println!("kflex roi_window {per_s:.1}");
+    }
     Ok(())
 }
