@@ -54,7 +54,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(o) = only.as_deref()
         && !["silhouette_48", "frame_640x480", "roi_window"].contains(&o)
     {
-        return Err(format!("unknown rate {o:?}: silhouette_48, frame_640x480 or roi_window").into());
+        return Err(
+            format!("unknown rate {o:?}: silhouette_48, frame_640x480 or roi_window").into(),
+        );
     }
     let camera = Camera::default();
     let instrument = Instrument::kflex();
