@@ -8,7 +8,8 @@
 //! condition's worst case, in the region and on the bend and gripper, for
 //! `examples/segment_case.rs`, with `KFLEX_UNDER=1` every case under a goal;
 //! `KFLEX_MATRIX_SEED=0,100,200` pools the cases over other backgrounds of
-//! the same organs, their seeds moved by each offset)
+//! the same organs, their seeds moved by each offset; `KFLEX_ONLY=blur` keeps
+//! the conditions whose name holds `blur`)
 
 #[path = "../tests/matrix/mod.rs"]
 mod matrix;
@@ -64,6 +65,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .map(|c| (" (IBJAE's training range)", *c)),
         )
     {
+        // `KFLEX_ONLY=blur` keeps the conditions whose name holds it
+        if let Ok(only) = std::env::var("KFLEX_ONLY")
+            && !condition.name().contains(only.as_str())
+        {
+            continue;
+        }
         let (mut roi, mut distal, mut missed, mut under) = (Vec::new(), Vec::new(), 0, 0);
         let (mut worst, mut worst_distal) = (None, None);
         for (&offset, &case) in offsets

@@ -23,7 +23,9 @@ use crate::error::{ControlError, Result};
 /// the tissue's in the segmentation. 3: the segmentation's clipping
 /// thresholds move down with a noisy frame's measured σ (a frame whose
 /// measured σ is above 0.025; version 2's data were made before that change).
-pub const IMAGE_GENERATOR_VERSION: u32 = 3;
+/// 4: the segmentation refines a blurred rim wider than a cell in up to
+/// three passes (its boundary moves toward tissue by whole cells).
+pub const IMAGE_GENERATOR_VERSION: u32 = 4;
 
 /// Side of IBJAE's silhouettes, px.
 const SIDE: u32 = 48;

@@ -292,7 +292,12 @@ pub fn segment(
 ///    colours are read beside the pixel, so tissue that changes along the
 ///    instrument is no trouble. Where the two points are not of the two
 ///    classes (a thin part, a corner) or their colours differ by less than
-///    [`SegmentParams::refine_contrast`], the cells' decision stands.
+///    [`SegmentParams::refine_contrast`], the cells' decision stands. A
+///    blurred rim wider than a cell (a far or defocused edge) can leave the
+///    cells' boundary more than a cell out: an instrument cell whose pixels
+///    all went to tissue becomes tissue, and the boundary around it is
+///    refined again (up to three passes; only toward tissue, which kept the
+///    pale and white tissues' faint edges in place).
 /// 7. The result is resampled to `out × out` (area vote: a cell is set where at
 ///    least half its pixels are). Fewer than [`SegmentParams::min_instrument`]
 ///    of the region's pixels set (before step 6): [`EstimateError::NoInstrument`].
@@ -303,6 +308,11 @@ pub struct Segmenter {
     /// The last frame's result, its masks refilled by the next.
     output: Segmentation,
 }
+
+/// Passes of the boundary's refinement at most (step 6): each after the
+/// first moves the cells' boundary by a cell where the last one changed
+/// all of a cell's pixels to tissue (`refine::flip_cells`).
+const REFINE_PASSES: usize = 3;
 
 /// Working memory of a [`Segmenter`].
 #[derive(Debug, Default)]
@@ -347,6 +357,10 @@ struct Scratch {
     /// the comparisons of a row's cells that give it.
     near: Vec<u8>,
     near_diff: Vec<u8>,
+    /// Per cell: whether `refine` decides it again (`refine::flip_cells`),
+    /// and whether it changed class.
+    redo: Vec<u8>,
+    flips: Vec<u8>,
     seen: Vec<bool>,
     flood: Vec<usize>,
     component: Vec<usize>,
@@ -542,17 +556,23 @@ impl Segmenter {
         let output = &mut self.output;
         output.full.reshape(roi.width, roi.height)?;
         output.small.reshape(p.out, p.out)?;
-        refine(
-            s,
-            &region,
-            cols,
-            rows,
-            p.refine_reach_px,
-            // in 8-bit units, and like the split's and merge's thresholds
-            // smaller in a darker region (a gain leaves the result alone)
-            p.refine_contrast * 255.0 * scale,
-            sigma,
-        );
+        // in 8-bit units, and like the split's and merge's thresholds
+        // smaller in a darker region (a gain leaves the result alone)
+        let contrast = p.refine_contrast * 255.0 * scale;
+        let reach = p.refine_reach_px;
+        // the first pass decides every cell along the boundary
+        s.changes.clear();
+        s.redo.clear();
+        refine(s, &region, cols, rows, reach, contrast, sigma);
+        // a rim wider than a cell (a blurred edge) moves the boundary by
+        // whole cells: the cells whose pixels all changed to tissue become
+        // tissue, and the boundary is refined again around them
+        for _ in 1..REFINE_PASSES {
+            if !refine::flip_cells(s, cols, rw, rh) {
+                break;
+            }
+            refine(s, &region, cols, rows, reach, contrast, sigma);
+        }
         s.row.clear();
         s.row.resize(rw, 0);
         let mut next = 0;

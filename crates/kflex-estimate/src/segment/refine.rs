@@ -182,8 +182,9 @@ fn offsets(reach: f32) -> [(isize, isize); 81] {
 }
 
 /// Refines the cells' mask pixel by pixel in the cells that border the
-/// other class, into `s.changes` (the pixels whose class differs from their
-/// cell's, sorted by index). The boundary's normal at a cell is the
+/// other class (where `s.redo` is not empty, only those it marks), adding
+/// to `s.changes` (the pixels whose class differs from their cell's,
+/// sorted by index; the caller empties it and `s.redo` before a first pass). The boundary's normal at a cell is the
 /// gradient of the cells' mask over the 3×3 cells around it (Sobel); the
 /// two colours are the means of the 4×4 pixels `reach` px (rounded to
 /// whole pixels) to either side of the cell's centre along it; a pixel of
@@ -212,9 +213,9 @@ pub(super) fn refine(
         changes,
         near: band,
         near_diff,
+        redo,
         ..
     } = s;
-    changes.clear();
     if reach <= 0.0 || cols * rows == 0 {
         return;
     }
@@ -224,6 +225,11 @@ pub(super) fn refine(
     }
     // the cells to refine: a neighbour of the other class
     mark_band(cells, cols, rows, band, near_diff);
+    if !redo.is_empty() {
+        // a later pass: only around the cells that moved (the others'
+        // changes stand)
+        band.iter_mut().zip(redo.iter()).for_each(|(b, &r)| *b &= r);
+    }
     let offsets = offsets(reach);
     let min2 = f64::from(min_contrast).powi(2);
     let cell = |x: usize, y: usize| -> i32 { i32::from(cells[y * cols + x]) };
@@ -306,6 +312,66 @@ pub(super) fn refine(
     }
     // a cell row's pixels come in two pixel rows
     changes.sort_unstable_by_key(|&c| changed(c).0);
+}
+
+/// After a pass of [`refine`]: gives each instrument cell all of whose
+/// pixels that pass changed to tissue their class (the blurred rim of a
+/// far or defocused edge is wider than a cell, so the cells' boundary
+/// moves out of reach of one pass), marks in `s.redo` the cells within one
+/// of a cell that changed, and drops their pixels' changes, for [`refine`]
+/// to decide again there (it appends their changes). Whether any cell changed. `rw × rh` is
+/// the region's size in pixels.
+///
+/// Only toward tissue, and only whole cells: growing the instrument, or
+/// moving by a majority of a cell, also moved boundaries on pale and white
+/// tissue where the steel's edge is faint (the robustness matrix).
+pub(super) fn flip_cells(s: &mut Scratch, cols: usize, rw: usize, rh: usize) -> bool {
+    let Scratch {
+        cells,
+        changes,
+        redo,
+        flips,
+        ..
+    } = s;
+    let rows = cells.len() / cols.max(1);
+    let cell_of = |c: u32| {
+        let i = changed(c).0;
+        let (x, y) = (i % rw, i / rw);
+        (y / 2) * cols + x / 2
+    };
+    // per cell, its pixels changed to tissue (only the changes are visited:
+    // they are few beside the cells)
+    flips.clear();
+    flips.resize(cells.len(), 0);
+    for &c in changes.iter() {
+        if changed(c).1 == 0 {
+            flips[cell_of(c)] += 1;
+        }
+    }
+    redo.clear();
+    redo.resize(cells.len(), 0);
+    let mut any = false;
+    for &c in changes.iter() {
+        let cell = cell_of(c);
+        let (cx, cy) = (cell % cols, cell / cols);
+        // a cell's pixels: 4, fewer on the region's odd last column or row
+        let pixels = (rw - 2 * cx).min(2) * (rh - 2 * cy).min(2);
+        if cells[cell] != 1 || usize::from(flips[cell]) != pixels {
+            continue;
+        }
+        cells[cell] = 0;
+        any = true;
+        // the cells within one of it are decided again
+        for y in cy.saturating_sub(1)..(cy + 2).min(rows) {
+            redo[y * cols + cx.saturating_sub(1)..y * cols + (cx + 2).min(cols)].fill(1);
+        }
+    }
+    if any {
+        changes.retain(|&c| redo[cell_of(c)] == 0);
+    } else {
+        redo.clear();
+    }
+    any
 }
 
 #[cfg(test)]
