@@ -410,4 +410,39 @@ mod tests {
             }
         }
     }
+
+    /// Only an instrument cell all of whose pixels changed to tissue moves;
+    /// the cells within one of it are marked to be decided again and their
+    /// changes dropped, the others' kept.
+    #[test]
+    fn only_whole_instrument_cells_changed_to_tissue_move() {
+        // 9×3 pixels: 5×2 cells, the last column and row of cells one pixel
+        let (rw, rh, cols) = (9usize, 3usize, 5usize);
+        let px = |x: usize, y: usize, v: u8| change((y * rw + x) as u32, v);
+        let mut s = Scratch {
+            cells: vec![1, 1, 1, 1, 1, 0, 1, 1, 1, 0],
+            ..Scratch::default()
+        };
+        s.changes = vec![
+            px(0, 0, 0), // cell (0, 0): all four pixels to tissue
+            px(1, 0, 0),
+            px(2, 0, 0), // cell (1, 0), beside it: one pixel
+            px(6, 0, 0), // cell (3, 0): three of four
+            px(7, 0, 0),
+            px(0, 1, 0),
+            px(1, 1, 0),
+            px(6, 1, 0),
+            px(8, 2, 1), // cell (4, 1), tissue: its one pixel to instrument
+        ];
+        s.changes.sort_unstable_by_key(|&c| changed(c).0);
+        assert!(flip_cells(&mut s, cols, rw, rh));
+        assert_eq!(s.cells, vec![0, 1, 1, 1, 1, 0, 1, 1, 1, 0]);
+        assert_eq!(s.redo, vec![1, 1, 0, 0, 0, 1, 1, 0, 0, 0]);
+        let kept: Vec<(usize, u8)> = s.changes.iter().map(|&c| changed(c)).collect();
+        assert_eq!(kept, vec![(6, 0), (7, 0), (15, 0), (26, 1)]);
+        // nothing more to move: no cell changes, nothing to redo
+        assert!(!flip_cells(&mut s, cols, rw, rh));
+        assert_eq!(s.cells, vec![0, 1, 1, 1, 1, 0, 1, 1, 1, 0]);
+        assert!(s.redo.is_empty());
+    }
 }
