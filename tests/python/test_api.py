@@ -348,9 +348,11 @@ def test_long_calls_release_the_interpreter(scene):
         duration, share = _progress_while(call)
         assert duration > 0.05, "the call is too short to tell"
         # holding the lock, the call would stop this thread for its whole
-        # length (a share near 0); released, this thread runs through most
-        # of it. Counted over 10 ms windows rather than as the longest
-        # pause, which a busy two-core machine stretches now and then
-        # (measured once: one 0.21 s pause in a 0.40 s call).
-        assert share > 0.5, (duration, share)
+        # length: it would run in the first and last 10 ms windows at most
+        # (a share under 0.05 for these calls of 0.4-0.6 s); released, this
+        # thread runs through most of it. Counted over windows rather than
+        # as the longest pause, which a busy two-core machine stretches now
+        # and then (measured once: one 0.21 s pause in a 0.40 s call; once a
+        # share of exactly 0.5, so the bound sits well below that).
+        assert share > 0.25, (duration, share)
     del frame
