@@ -1,6 +1,6 @@
 //! A kept `Segmenter` allocates nothing once it has seen a region of the
 //! size (issue 9): a counting allocator around segmentations of frames that
-//! differ in pose, background, tissue, noise and tape, after one frame.
+//! differ in pose, background, tissue, noise, blur and tape, after one frame.
 //! (Its own test binary: the allocator is global.)
 
 #[path = "support/counting.rs"]
@@ -36,6 +36,8 @@ fn a_kept_segmenter_allocates_nothing_after_the_first_region() {
                 background,
                 tissue,
                 noise_std: 0.02 * j as f64,
+                // blur 3 px makes the boundary step take its later passes
+                blur_px: 1.5 * k as f64,
                 occlusion: (j == 1).then(|| Occlusion::new(0.4, 0.5)),
                 seed: k as u64,
                 ..FrameParams::default()

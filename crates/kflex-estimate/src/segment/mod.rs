@@ -296,8 +296,9 @@ pub fn segment(
 ///    blurred rim wider than a cell (a far or defocused edge) can leave the
 ///    cells' boundary more than a cell out: an instrument cell whose pixels
 ///    all went to tissue becomes tissue, and the boundary around it is
-///    refined again (up to three passes; only toward tissue, which kept the
-///    pale and white tissues' faint edges in place).
+///    refined again (up to three passes; only toward tissue and only whole
+///    cells: growing cells too, or moving a cell on a majority of its
+///    pixels, lost pale, blue-green and yellow tissue cases).
 /// 7. The result is resampled to `out × out` (area vote: a cell is set where at
 ///    least half its pixels are). Fewer than [`SegmentParams::min_instrument`]
 ///    of the region's pixels set (before step 6): [`EstimateError::NoInstrument`].
@@ -353,14 +354,16 @@ struct Scratch {
     /// The pixels whose class the boundary's refinement changed from their
     /// cell's, sorted by index (`refine::changed` reads one).
     changes: Vec<u32>,
-    /// Per cell: whether a neighbour is of the other class (`refine`), and
-    /// the comparisons of a row's cells that give it.
+    /// Per cell: whether a neighbour is of the other class (`refine`; in a
+    /// later pass only the cells `redo` marks), and the comparisons of a
+    /// row's cells that give it.
     near: Vec<u8>,
     near_diff: Vec<u8>,
-    /// Per cell: whether `refine` decides it again (`refine::flip_cells`),
-    /// and whether it changed class.
+    /// Per cell, for the boundary step's later passes
+    /// (`refine::flip_cells`): whether `refine` decides it again, and how
+    /// many of its pixels the last pass changed to tissue.
     redo: Vec<u8>,
-    flips: Vec<u8>,
+    to_tissue: Vec<u8>,
     seen: Vec<bool>,
     flood: Vec<usize>,
     component: Vec<usize>,
@@ -573,6 +576,12 @@ impl Segmenter {
             }
             refine(s, &region, cols, rows, reach, contrast, sigma);
         }
+        debug_assert!(
+            s.changes
+                .windows(2)
+                .all(|w| refine::changed(w[0]).0 < refine::changed(w[1]).0),
+            "the boundary's changes are sorted, one a pixel"
+        );
         s.row.clear();
         s.row.resize(rw, 0);
         let mut next = 0;

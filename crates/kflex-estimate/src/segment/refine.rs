@@ -184,10 +184,11 @@ fn offsets(reach: f32) -> [(isize, isize); 81] {
 /// Refines the cells' mask pixel by pixel in the cells that border the
 /// other class (where `s.redo` is not empty, only those it marks), adding
 /// to `s.changes` (the pixels whose class differs from their cell's,
-/// sorted by index; the caller empties it and `s.redo` before a first pass). The boundary's normal at a cell is the
-/// gradient of the cells' mask over the 3×3 cells around it (Sobel); the
-/// two colours are the means of the 4×4 pixels `reach` px (rounded to
-/// whole pixels) to either side of the cell's centre along it; a pixel of
+/// sorted by index; the caller empties it and `s.redo` before a first
+/// pass). The boundary's normal at a cell is the gradient of the cells'
+/// mask over the 3×3 cells around it (Sobel); the two colours are the means
+/// of the 4×4 pixels `reach` px (rounded to whole pixels) to either side of
+/// the cell's centre along it; a pixel of
 /// the cell is instrument where its colour (its own, or where the frame's
 /// noise `sigma` is above [`NOISY`] the mean of its 3×3 pixels, which cuts
 /// the noise to a third) lies past half way from the outer colour to the
@@ -319,18 +320,20 @@ pub(super) fn refine(
 /// far or defocused edge is wider than a cell, so the cells' boundary
 /// moves out of reach of one pass), marks in `s.redo` the cells within one
 /// of a cell that changed, and drops their pixels' changes, for [`refine`]
-/// to decide again there (it appends their changes). Whether any cell changed. `rw × rh` is
-/// the region's size in pixels.
+/// to decide again there (it appends their changes). Whether any cell
+/// changed. `rw × rh` is the region's size in pixels.
 ///
-/// Only toward tissue, and only whole cells: growing the instrument, or
-/// moving by a majority of a cell, also moved boundaries on pale and white
-/// tissue where the steel's edge is faint (the robustness matrix).
+/// Only toward tissue, and only whole cells: growing the instrument too, or
+/// moving a cell on a majority of its pixels, lost cases on pale, blue-green
+/// and yellow tissue (the robustness matrix). A kept change two cells from
+/// a moved cell was decided with the cells before the move (its sample
+/// boxes may reach into the moved cell); it stands.
 pub(super) fn flip_cells(s: &mut Scratch, cols: usize, rw: usize, rh: usize) -> bool {
     let Scratch {
         cells,
         changes,
         redo,
-        flips,
+        to_tissue,
         ..
     } = s;
     let rows = cells.len() / cols.max(1);
@@ -339,13 +342,13 @@ pub(super) fn flip_cells(s: &mut Scratch, cols: usize, rw: usize, rh: usize) -> 
         let (x, y) = (i % rw, i / rw);
         (y / 2) * cols + x / 2
     };
-    // per cell, its pixels changed to tissue (only the changes are visited:
-    // they are few beside the cells)
-    flips.clear();
-    flips.resize(cells.len(), 0);
+    // per cell, its pixels changed to tissue (counted over the changes,
+    // which are few beside the cells)
+    to_tissue.clear();
+    to_tissue.resize(cells.len(), 0);
     for &c in changes.iter() {
         if changed(c).1 == 0 {
-            flips[cell_of(c)] += 1;
+            to_tissue[cell_of(c)] += 1;
         }
     }
     redo.clear();
@@ -356,7 +359,7 @@ pub(super) fn flip_cells(s: &mut Scratch, cols: usize, rw: usize, rh: usize) -> 
         let (cx, cy) = (cell % cols, cell / cols);
         // a cell's pixels: 4, fewer on the region's odd last column or row
         let pixels = (rw - 2 * cx).min(2) * (rh - 2 * cy).min(2);
-        if cells[cell] != 1 || usize::from(flips[cell]) != pixels {
+        if cells[cell] != 1 || usize::from(to_tissue[cell]) != pixels {
             continue;
         }
         cells[cell] = 0;
@@ -444,5 +447,17 @@ mod tests {
         assert!(!flip_cells(&mut s, cols, rw, rh));
         assert_eq!(s.cells, vec![0, 1, 1, 1, 1, 0, 1, 1, 1, 0]);
         assert!(s.redo.is_empty());
+        // the region's odd last column and row: cells of two pixels and one
+        let (rw, rh, cols) = (3usize, 3usize, 2usize);
+        let px = |x: usize, y: usize, v: u8| change((y * rw + x) as u32, v);
+        let mut s = Scratch {
+            cells: vec![1, 1, 1, 1],
+            ..Scratch::default()
+        };
+        s.changes = vec![px(2, 0, 0), px(2, 1, 0), px(2, 2, 0)];
+        assert!(flip_cells(&mut s, cols, rw, rh));
+        assert_eq!(s.cells, vec![1, 0, 1, 0]);
+        assert_eq!(s.redo, vec![1, 1, 1, 1]);
+        assert!(s.changes.is_empty());
     }
 }
