@@ -354,16 +354,19 @@ struct Scratch {
     /// The pixels whose class the boundary's refinement changed from their
     /// cell's, sorted by index (`refine::changed` reads one).
     changes: Vec<u32>,
-    /// Per cell: whether a neighbour is of the other class (`refine`; in a
-    /// later pass only the cells `redo` marks), and the comparisons of a
-    /// row's cells that give it.
+    /// Per cell: whether a neighbour is of the other class (`refine`'s
+    /// first pass), and the comparisons of a row's cells that give it.
     near: Vec<u8>,
     near_diff: Vec<u8>,
     /// Per cell, for the boundary step's later passes
-    /// (`refine::flip_cells`): whether `refine` decides it again, and how
-    /// many of its pixels the last pass changed to tissue.
+    /// (`refine::flip_cells`): whether `refine` decides it again (and those
+    /// cells listed), and how many of its pixels the last pass changed to
+    /// tissue.
     redo: Vec<u8>,
+    redo_list: Vec<u32>,
     to_tissue: Vec<u8>,
+    /// A later pass's new changes, while they merge with the kept ones.
+    tail: Vec<u32>,
     seen: Vec<bool>,
     flood: Vec<usize>,
     component: Vec<usize>,
@@ -565,7 +568,7 @@ impl Segmenter {
         let reach = p.refine_reach_px;
         // the first pass decides every cell along the boundary
         s.changes.clear();
-        s.redo.clear();
+        s.redo_list.clear();
         refine(s, &region, cols, rows, reach, contrast, sigma);
         // a rim wider than a cell (a blurred edge) moves the boundary by
         // whole cells: the cells whose pixels all changed to tissue become

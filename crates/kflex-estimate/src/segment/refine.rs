@@ -182,9 +182,9 @@ fn offsets(reach: f32) -> [(isize, isize); 81] {
 }
 
 /// Refines the cells' mask pixel by pixel in the cells that border the
-/// other class (where `s.redo` is not empty, only those it marks), adding
-/// to `s.changes` (the pixels whose class differs from their cell's,
-/// sorted by index; the caller empties it and `s.redo` before a first
+/// other class (where `s.redo_list` is not empty, only those it lists),
+/// adding to `s.changes` (the pixels whose class differs from their cell's,
+/// sorted by index; the caller empties it and `s.redo_list` before a first
 /// pass). The boundary's normal at a cell is the gradient of the cells'
 /// mask over the 3×3 cells around it (Sobel); the two colours are the means
 /// of the 4×4 pixels `reach` px (rounded to whole pixels) to either side of
@@ -214,114 +214,159 @@ pub(super) fn refine(
         changes,
         near: band,
         near_diff,
-        redo,
+        redo_list,
+        tail,
         ..
     } = s;
     if reach <= 0.0 || cols * rows == 0 {
         return;
     }
-    // room for every pixel once per region size: no allocation per frame
+    // a later pass appends to the changes the earlier ones kept (sorted)
+    let kept = changes.len();
+    // room for every pixel once per region size (and for a later pass's
+    // changes while they merge): no allocation per frame
     if changes.capacity() < rw * rh {
         changes.reserve_exact(rw * rh);
     }
-    // the cells to refine: a neighbour of the other class
-    mark_band(cells, cols, rows, band, near_diff);
-    if !redo.is_empty() {
-        // a later pass: only around the cells that moved (the others'
-        // changes stand)
-        band.iter_mut().zip(redo.iter()).for_each(|(b, &r)| *b &= r);
+    if tail.capacity() < rw * rh {
+        tail.reserve_exact(rw * rh);
+    }
+    // the cells to refine: a neighbour of the other class (in a later pass
+    // among `redo_list` alone, below)
+    let first = redo_list.is_empty();
+    if first {
+        mark_band(cells, cols, rows, band, near_diff);
     }
     let offsets = offsets(reach);
     let min2 = f64::from(min_contrast).powi(2);
     let cell = |x: usize, y: usize| -> i32 { i32::from(cells[y * cols + x]) };
     // the cells' decision at a pixel (the samples read it, not the refined one)
     let class_at = |x: usize, y: usize| cells[(y / 2) * cols + x / 2];
-    for cy in 0..rows {
-        let row = &band[cy * cols..(cy + 1) * cols];
-        // most of a row is far from the boundary: skip eight cells at a time
-        let marked = row.chunks(8).enumerate().flat_map(|(k, chunk)| {
-            let any = chunk.iter().fold(0u8, |a, &b| a | b) != 0;
-            chunk
-                .iter()
-                .enumerate()
-                .filter(move |&(_, &b)| any && b != 0)
-                .map(move |(j, _)| 8 * k + j)
-        });
-        for cx in marked {
-            // toward the instrument: the mask's gradient (Sobel) over the cells
-            let (l, r) = (cx.saturating_sub(1), (cx + 1).min(cols - 1));
-            let (u, d) = (cy.saturating_sub(1), (cy + 1).min(rows - 1));
-            let gx = cell(r, u) + 2 * cell(r, cy) + cell(r, d)
-                - cell(l, u)
-                - 2 * cell(l, cy)
-                - cell(l, d);
-            let gy = cell(l, d) + 2 * cell(cx, d) + cell(r, d)
-                - cell(l, u)
-                - 2 * cell(cx, u)
-                - cell(r, u);
-            let (ox, oy) = offsets[((gy + 4) * 9 + gx + 4) as usize];
-            if (ox, oy) == (0, 0) {
-                continue;
-            }
-            // the two colours: the 4×4 pixels centred on the cell's centre
-            // (the corner between its pixels) moved by ± the offset, so
-            // that both lie exactly as far from it
-            let box_at = |sign: isize| -> [isize; 4] {
-                let (x, y) = ((2 * cx) as isize + sign * ox, (2 * cy) as isize + sign * oy);
-                [x - 1, y - 1, x + 3, y + 3]
-            };
-            let (inside, outside) = (box_at(1), box_at(-1));
-            // both boxes' centres must lie in the image and in their class
-            let centre_class = |b: [isize; 4]| -> Option<u8> {
-                let (x, y) = (b[0] + 2, b[1] + 2);
-                (x >= 0 && y >= 0 && (x as usize) < rw && (y as usize) < rh)
-                    .then(|| class_at(x as usize, y as usize))
-            };
-            if centre_class(inside) != Some(1) || centre_class(outside) != Some(0) {
-                continue;
-            }
-            let ((s_in, m_in), (s_out, m_out)) =
-                (box_sum(region, inside), box_sum(region, outside));
-            let scale = m_in * m_out;
-            let outer = s_out.map(|v| v * m_in);
-            let delta = [0, 1, 2].map(|k| s_in[k] * m_out - outer[k]);
-            let d2: i64 = delta.iter().map(|v| v * v).sum();
-            if d2 == 0 || (d2 as f64) < min2 * (scale * scale) as f64 {
-                continue;
-            }
-            for py in 2 * cy..(2 * cy + 2).min(rh) {
-                for px in 2 * cx..(2 * cx + 2).min(rw) {
-                    // past half way: (F/m − T)·Δ ≥ |Δ|²/2, times 2 m N²
-                    let (f, m) = if noisy {
-                        let (x, y) = (px as isize, py as isize);
-                        box_sum(region, [x - 1, y - 1, x + 2, y + 2])
-                    } else {
-                        let i = region.first + py * region.stride + 3 * px;
-                        let p = &region.rgb[i..i + 3];
-                        (features([0, 1, 2].map(|k| i64::from(p[k]))), 1)
-                    };
-                    let along: i64 = (0..3)
-                        .map(|k| (f[k] * scale - m * outer[k]) * delta[k])
-                        .sum();
-                    let v = u8::from(2 * along >= m * d2);
-                    if v != class_at(px, py) {
-                        changes.push(change((py * rw + px) as u32, v));
-                    }
+    let mut refine_cell = |cx: usize, cy: usize| {
+        // toward the instrument: the mask's gradient (Sobel) over the cells
+        let (l, r) = (cx.saturating_sub(1), (cx + 1).min(cols - 1));
+        let (u, d) = (cy.saturating_sub(1), (cy + 1).min(rows - 1));
+        let gx =
+            cell(r, u) + 2 * cell(r, cy) + cell(r, d) - cell(l, u) - 2 * cell(l, cy) - cell(l, d);
+        let gy =
+            cell(l, d) + 2 * cell(cx, d) + cell(r, d) - cell(l, u) - 2 * cell(cx, u) - cell(r, u);
+        let (ox, oy) = offsets[((gy + 4) * 9 + gx + 4) as usize];
+        if (ox, oy) == (0, 0) {
+            return;
+        }
+        // the two colours: the 4×4 pixels centred on the cell's centre
+        // (the corner between its pixels) moved by ± the offset, so
+        // that both lie exactly as far from it
+        let box_at = |sign: isize| -> [isize; 4] {
+            let (x, y) = ((2 * cx) as isize + sign * ox, (2 * cy) as isize + sign * oy);
+            [x - 1, y - 1, x + 3, y + 3]
+        };
+        let (inside, outside) = (box_at(1), box_at(-1));
+        // both boxes' centres must lie in the image and in their class
+        let centre_class = |b: [isize; 4]| -> Option<u8> {
+            let (x, y) = (b[0] + 2, b[1] + 2);
+            (x >= 0 && y >= 0 && (x as usize) < rw && (y as usize) < rh)
+                .then(|| class_at(x as usize, y as usize))
+        };
+        if centre_class(inside) != Some(1) || centre_class(outside) != Some(0) {
+            return;
+        }
+        let ((s_in, m_in), (s_out, m_out)) = (box_sum(region, inside), box_sum(region, outside));
+        let scale = m_in * m_out;
+        let outer = s_out.map(|v| v * m_in);
+        let delta = [0, 1, 2].map(|k| s_in[k] * m_out - outer[k]);
+        let d2: i64 = delta.iter().map(|v| v * v).sum();
+        if d2 == 0 || (d2 as f64) < min2 * (scale * scale) as f64 {
+            return;
+        }
+        for py in 2 * cy..(2 * cy + 2).min(rh) {
+            for px in 2 * cx..(2 * cx + 2).min(rw) {
+                // past half way: (F/m − T)·Δ ≥ |Δ|²/2, times 2 m N²
+                let (f, m) = if noisy {
+                    let (x, y) = (px as isize, py as isize);
+                    box_sum(region, [x - 1, y - 1, x + 2, y + 2])
+                } else {
+                    let i = region.first + py * region.stride + 3 * px;
+                    let p = &region.rgb[i..i + 3];
+                    (features([0, 1, 2].map(|k| i64::from(p[k]))), 1)
+                };
+                let along: i64 = (0..3)
+                    .map(|k| (f[k] * scale - m * outer[k]) * delta[k])
+                    .sum();
+                let v = u8::from(2 * along >= m * d2);
+                if v != class_at(px, py) {
+                    changes.push(change((py * rw + px) as u32, v));
                 }
             }
         }
+    };
+    if first {
+        for cy in 0..rows {
+            let row = &band[cy * cols..(cy + 1) * cols];
+            // most of a row is far from the boundary: skip eight cells at a time
+            let marked = row.chunks(8).enumerate().flat_map(|(k, chunk)| {
+                let any = chunk.iter().fold(0u8, |a, &b| a | b) != 0;
+                chunk
+                    .iter()
+                    .enumerate()
+                    .filter(move |&(_, &b)| any && b != 0)
+                    .map(move |(j, _)| 8 * k + j)
+            });
+            for cx in marked {
+                refine_cell(cx, cy);
+            }
+        }
+    } else {
+        // a later pass: the cells around those that moved, where a
+        // neighbour is of the other class (the others' changes stand)
+        for &c in redo_list.iter() {
+            let (cx, cy) = (c as usize % cols, c as usize / cols);
+            let here = cells[cy * cols + cx];
+            let borders = (cy.saturating_sub(1)..(cy + 2).min(rows)).any(|y| {
+                (cx.saturating_sub(1)..(cx + 2).min(cols)).any(|x| cells[y * cols + x] != here)
+            });
+            if borders {
+                refine_cell(cx, cy);
+            }
+        }
     }
+
     // a cell row's pixels come in two pixel rows
-    changes.sort_unstable_by_key(|&c| changed(c).0);
+    changes[kept..].sort_unstable_by_key(|&c| changed(c).0);
+    merge_tail(changes, kept, tail);
+}
+
+/// Merges the sorted `changes[..kept]` and `changes[kept..]` in place
+/// (by pixel index, which no two share), through `tail`, a copy of the
+/// second run: linear in the length, where sorting the whole again was not.
+fn merge_tail(changes: &mut [u32], kept: usize, tail: &mut Vec<u32>) {
+    if kept == 0 || kept == changes.len() {
+        return;
+    }
+    tail.clear();
+    tail.extend_from_slice(&changes[kept..]);
+    // from the back: the largest of the two runs' last entries goes last
+    let (mut i, mut j, mut k) = (kept, tail.len(), changes.len());
+    while j > 0 {
+        k -= 1;
+        if i > 0 && changed(changes[i - 1]).0 > changed(tail[j - 1]).0 {
+            changes[k] = changes[i - 1];
+            i -= 1;
+        } else {
+            changes[k] = tail[j - 1];
+            j -= 1;
+        }
+    }
 }
 
 /// After a pass of [`refine`]: gives each instrument cell all of whose
 /// pixels that pass changed to tissue their class (the blurred rim of a
 /// far or defocused edge is wider than a cell, so the cells' boundary
-/// moves out of reach of one pass), marks in `s.redo` the cells within one
-/// of a cell that changed, and drops their pixels' changes, for [`refine`]
-/// to decide again there (it appends their changes). Whether any cell
-/// changed. `rw × rh` is the region's size in pixels.
+/// moves out of reach of one pass), marks in `s.redo` (and lists in
+/// `s.redo_list`) the cells within one of a cell that changed, and drops
+/// their pixels' changes, for [`refine`] to decide again there (it appends
+/// their changes). Whether any cell changed. `rw × rh` is the region's size
+/// in pixels.
 ///
 /// Only toward tissue, and only whole cells: growing the instrument too, or
 /// moving a cell on a majority of its pixels, lost cases on pale, blue-green
@@ -333,6 +378,7 @@ pub(super) fn flip_cells(s: &mut Scratch, cols: usize, rw: usize, rh: usize) -> 
         cells,
         changes,
         redo,
+        redo_list,
         to_tissue,
         ..
     } = s;
@@ -353,6 +399,11 @@ pub(super) fn flip_cells(s: &mut Scratch, cols: usize, rw: usize, rh: usize) -> 
     }
     redo.clear();
     redo.resize(cells.len(), 0);
+    redo_list.clear();
+    // each cell listed once at most: no allocation per frame
+    if redo_list.capacity() < cells.len() {
+        redo_list.reserve_exact(cells.len());
+    }
     let mut any = false;
     for &c in changes.iter() {
         let cell = cell_of(c);
@@ -366,13 +417,16 @@ pub(super) fn flip_cells(s: &mut Scratch, cols: usize, rw: usize, rh: usize) -> 
         any = true;
         // the cells within one of it are decided again
         for y in cy.saturating_sub(1)..(cy + 2).min(rows) {
-            redo[y * cols + cx.saturating_sub(1)..y * cols + (cx + 2).min(cols)].fill(1);
+            for x in cx.saturating_sub(1)..(cx + 2).min(cols) {
+                if redo[y * cols + x] == 0 {
+                    redo[y * cols + x] = 1;
+                    redo_list.push((y * cols + x) as u32);
+                }
+            }
         }
     }
     if any {
         changes.retain(|&c| redo[cell_of(c)] == 0);
-    } else {
-        redo.clear();
     }
     any
 }
@@ -380,6 +434,37 @@ pub(super) fn flip_cells(s: &mut Scratch, cols: usize, rw: usize, rh: usize) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Two sorted runs merge into one sorted list, whatever their lengths
+    /// and however they interleave.
+    #[test]
+    fn merging_the_tail_sorts_the_changes() {
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut tail = Vec::new();
+        for (m, k) in [(0, 5), (5, 0), (1, 1), (7, 3), (3, 9), (40, 40)] {
+            let mut pixels: Vec<u32> = (0..200).collect();
+            // a random choice of m + k distinct pixels, split at random
+            for i in (1..pixels.len()).rev() {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                pixels.swap(i, (state % (i as u64 + 1)) as usize);
+            }
+            let (a, b) = pixels[..m + k].split_at(m);
+            let run = |p: &[u32]| {
+                let mut r: Vec<u32> = p.iter().map(|&i| change(i, (i % 2) as u8)).collect();
+                r.sort_unstable_by_key(|&c| changed(c).0);
+                r
+            };
+            let mut changes = run(a);
+            changes.extend(run(b));
+            merge_tail(&mut changes, m, &mut tail);
+            let mut expected = changes.clone();
+            expected.sort_unstable_by_key(|&c| changed(c).0);
+            assert_eq!(changes, expected, "runs of {m} and {k}");
+            assert_eq!(changes, run(&pixels[..m + k]), "runs of {m} and {k}");
+        }
+    }
 
     #[test]
     fn a_whole_box_sums_as_the_clipped_loop_does() {
@@ -443,10 +528,13 @@ mod tests {
         assert_eq!(s.redo, vec![1, 1, 0, 0, 0, 1, 1, 0, 0, 0]);
         let kept: Vec<(usize, u8)> = s.changes.iter().map(|&c| changed(c)).collect();
         assert_eq!(kept, vec![(6, 0), (7, 0), (15, 0), (26, 1)]);
+        let mut listed = s.redo_list.clone();
+        listed.sort_unstable();
+        assert_eq!(listed, vec![0, 1, 5, 6]);
         // nothing more to move: no cell changes, nothing to redo
         assert!(!flip_cells(&mut s, cols, rw, rh));
         assert_eq!(s.cells, vec![0, 1, 1, 1, 1, 0, 1, 1, 1, 0]);
-        assert!(s.redo.is_empty());
+        assert!(s.redo_list.is_empty());
         // the region's odd last column and row: cells of two pixels and one
         let (rw, rh, cols) = (3usize, 3usize, 2usize);
         let px = |x: usize, y: usize, v: u8| change((y * rw + x) as u32, v);
