@@ -318,7 +318,9 @@ pub(super) fn refine(
         }
     } else {
         // a later pass: the cells around those that moved, where a
-        // neighbour is of the other class (the others' changes stand)
+        // neighbour is of the other class (`mark_band`'s rule, asked of the
+        // few listed cells instead of the whole grid; the others' changes
+        // stand)
         for &c in redo_list.iter() {
             let (cx, cy) = (c as usize % cols, c as usize / cols);
             let here = cells[cy * cols + cx];
@@ -330,8 +332,8 @@ pub(super) fn refine(
             }
         }
     }
-
-    // a cell row's pixels come in two pixel rows
+    // this pass's changes come unsorted (a cell row's pixels in two pixel
+    // rows; a later pass's cells in the order they were listed)
     changes[kept..].sort_unstable_by_key(|&c| changed(c).0);
     merge_tail(changes, kept, tail);
 }
