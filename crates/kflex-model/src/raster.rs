@@ -310,48 +310,325 @@ impl Rasterizer {
         window: Roi,
         mut f: impl FnMut(u32, u32, SurfaceHit),
     ) {
-        // per ray of the tile: direction, pixel position, and the nearest
-        // hit so far (distance, axial parameter, surface, body)
-        let mut rays = [(Vector3::zeros(), 0.0, 0.0); TILE_RAYS];
-        let mut best = [(f64::INFINITY, 0.0, Surface::Side, 0usize); TILE_RAYS];
+        let mut lanes = Lanes::default();
+        let wide = Lanes::wide();
         self.tiles(
             camera,
             window,
             |scene, optics, [x0, y0, x1, y1], candidates| {
-                let n = ((x1 - x0) * (y1 - y0)) as usize;
-                let (rays, best) = (&mut rays[..n], &mut best[..n]);
+                lanes.load(optics, [x0, y0, x1, y1]);
+                lanes.cast(&scene.bodies, candidates, wide);
                 let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y)));
-                for ((ray, b), (x, y)) in rays.iter_mut().zip(best.iter_mut()).zip(pixels) {
-                    *ray = (optics.ray(x, y), f64::from(x) + 0.5, f64::from(y) + 0.5);
-                    *b = (f64::INFINITY, 0.0, Surface::Side, 0);
-                }
-                for &i in candidates {
-                    let i = usize::from(i);
-                    let Some(body) = scene.bodies.get(i) else {
-                        continue;
-                    };
-                    for ((d, pu, pv), b) in rays.iter().zip(best.iter_mut()) {
-                        // candidates come nearest first: a ray whose hit is
-                        // nearer than the body can be is done with it
-                        if b.0 < body.near || !body.box_holds(*pu, *pv) {
-                            continue;
-                        }
-                        if let Some((t, u, s)) = body.hit(d)
-                            && t < b.0
-                        {
-                            *b = (t, u, s, i);
-                        }
-                    }
-                }
-                let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y)));
-                for (((d, _, _), &(t, u, s, i)), (x, y)) in rays.iter().zip(best.iter()).zip(pixels)
-                {
-                    if t < f64::INFINITY {
-                        f(x, y, scene.surface_hit(d, t, u, s, i));
+                for (k, (x, y)) in pixels.enumerate() {
+                    if lanes.t[k] < f64::INFINITY {
+                        let d = Vector3::new(lanes.dx[k], lanes.dy[k], lanes.dz[k]);
+                        let s = if lanes.s[k] == 0.0 {
+                            Surface::Side
+                        } else if lanes.s[k] == 1.0 {
+                            Surface::EndA
+                        } else {
+                            Surface::EndB
+                        };
+                        f(
+                            x,
+                            y,
+                            scene.surface_hit(&d, lanes.t[k], lanes.u[k], s, lanes.i[k] as usize),
+                        );
                     }
                 }
             },
         );
+    }
+}
+
+/// A fine tile's rays as a structure of arrays, one lane a ray, and each
+/// ray's nearest hit so far: distance `t` (infinite for none), axial
+/// parameter `u`, surface `s` (0 side, 1 end A, 2 end B) and body `i`.
+/// Every lane is cast against a whole body at once, without branches, so
+/// the compiler runs four rays in each vector instruction; the lanes past a
+/// partial tile's rays are never live.
+///
+/// The arithmetic is [`CameraBody::hit`]'s, operation for operation (no
+/// fused multiply-add), and a hit replaces the ray's nearest only when
+/// strictly nearer, surface by surface in `hit`'s order: the same bits as
+/// [`Scene::first_hit_along`] (a test holds them equal). Where `hit` bails
+/// out on a negated test (`qa <= 1e-18`, `|d·a| <= 1e-12`), the lanes ask
+/// the positive one: they differ only for NaN, which no hit survives either
+/// way, and a lane's distance is never NaN.
+#[derive(Debug, Clone)]
+struct Lanes {
+    dx: [f64; TILE_RAYS],
+    dy: [f64; TILE_RAYS],
+    dz: [f64; TILE_RAYS],
+    pu: [f64; TILE_RAYS],
+    pv: [f64; TILE_RAYS],
+    t: [f64; TILE_RAYS],
+    u: [f64; TILE_RAYS],
+    s: [f64; TILE_RAYS],
+    i: [f64; TILE_RAYS],
+}
+
+impl Default for Lanes {
+    fn default() -> Self {
+        Self {
+            dx: [0.0; TILE_RAYS],
+            dy: [0.0; TILE_RAYS],
+            dz: [1.0; TILE_RAYS],
+            pu: [f64::NAN; TILE_RAYS],
+            pv: [f64::NAN; TILE_RAYS],
+            t: [f64::INFINITY; TILE_RAYS],
+            u: [0.0; TILE_RAYS],
+            s: [0.0; TILE_RAYS],
+            i: [0.0; TILE_RAYS],
+        }
+    }
+}
+
+impl Lanes {
+    /// Whether this processor runs the AVX2 copy of [`Lanes::cast`].
+    fn wide() -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            std::arch::is_x86_feature_detected!("avx2")
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            false
+        }
+    }
+
+    /// The rays of the tile `[x0, y0, x1, y1)`, row by row, with no hit yet;
+    /// the lanes past them hold no pixel (NaN), so no body's box holds them,
+    /// and a hit nearer than every body (−∞), so they never hold a tile's
+    /// bodies back from the nearest-first stop.
+    fn load(&mut self, optics: &Optics, [x0, y0, x1, y1]: [u32; 4]) {
+        let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y)));
+        let mut n = 0;
+        for (k, (x, y)) in pixels.enumerate().take(TILE_RAYS) {
+            let d = optics.ray(x, y);
+            (self.dx[k], self.dy[k], self.dz[k]) = (d.x, d.y, d.z);
+            (self.pu[k], self.pv[k]) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+            n = k + 1;
+        }
+        self.pu[n..].fill(f64::NAN);
+        self.pv[n..].fill(f64::NAN);
+        self.t[..n].fill(f64::INFINITY);
+        self.t[n..].fill(f64::NEG_INFINITY);
+    }
+
+    /// Casts every lane against the bodies `candidates` (nearest first),
+    /// four lanes to an instruction where `wide`.
+    fn cast(&mut self, bodies: &[CameraBody], candidates: &[u16], wide: bool) {
+        for &i in candidates {
+            let Some(body) = bodies.get(usize::from(i)) else {
+                continue;
+            };
+            // a ray whose hit is nearer than the body can be is done with it
+            if !self.t.iter().any(|&t| t >= body.near) {
+                break;
+            }
+            let id = f64::from(i);
+            #[cfg(target_arch = "x86_64")]
+            if wide {
+                // SAFETY: `wide` is true only where the processor has AVX2 (`Lanes::wide`).
+                unsafe {
+                    match (body.len > 1e-9, body.ends) {
+                        (true, Ends::Round) => self.body_avx2::<true, false, true>(body, id),
+                        (true, Ends::Flat) => self.body_avx2::<true, true, false>(body, id),
+                        (false, Ends::Round) => self.body_avx2::<false, false, true>(body, id),
+                        (false, Ends::Flat) => {}
+                    }
+                }
+                continue;
+            }
+            let _ = wide;
+            match (body.len > 1e-9, body.ends) {
+                (true, Ends::Round) => self.body::<true, false, true>(body, id),
+                (true, Ends::Flat) => self.body::<true, true, false>(body, id),
+                (false, Ends::Round) => self.body::<false, false, true>(body, id),
+                // a flat body of no length is a disc of no thickness
+                (false, Ends::Flat) => {}
+            }
+        }
+    }
+
+    /// [`Lanes::body`] four lanes at a time in AVX2: the same operations in
+    /// the same order, each comparison with the same answer for NaN (an
+    /// ordered one for `<`, `<=`, `>`, `>=`, an unordered one under `!`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn body_avx2<const SIDE: bool, const DISCS: bool, const SPHERES: bool>(
+        &mut self,
+        body: &CameraBody,
+        id: f64,
+    ) {
+        use std::arch::x86_64::{
+            __m256d, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NLE_UQ, _CMP_NLT_UQ,
+            _mm256_add_pd, _mm256_and_pd, _mm256_andnot_pd, _mm256_blendv_pd, _mm256_cmp_pd,
+            _mm256_div_pd, _mm256_loadu_pd, _mm256_movemask_pd, _mm256_mul_pd, _mm256_or_pd,
+            _mm256_set1_pd, _mm256_sqrt_pd, _mm256_storeu_pd, _mm256_sub_pd, _mm256_xor_pd,
+        };
+        let b = body;
+        let v = |x: f64| _mm256_set1_pd(x);
+        let (add, sub, mul, div) = (_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_div_pd);
+        let (and, blend) = (_mm256_and_pd, _mm256_blendv_pd);
+        let [s0, s1, s2, s3] = b.screen.map(v);
+        let (ax, ay, az) = (v(b.axis.x), v(b.axis.y), v(b.axis.z));
+        let (cx, cy, cz) = (v(b.across.x), v(b.across.y), v(b.across.z));
+        let (near, across_c, a_axis, len) = (v(b.near), v(b.across_c), v(b.a_axis), v(b.len));
+        let r2 = v(b.r * b.r);
+        let (zero, one, two, four) = (v(0.0), v(1.0), v(2.0), v(4.0));
+        let (nan, sign, id) = (v(f64::NAN), v(-0.0), v(id));
+        for k in (0..TILE_RAYS).step_by(4) {
+            // SAFETY: `k + 4 <= TILE_RAYS`, the length of every array read and written.
+            let at = |a: &[f64; TILE_RAYS]| unsafe { _mm256_loadu_pd(a.as_ptr().add(k)) };
+            let (pu, pv, t0) = (at(&self.pu), at(&self.pv), at(&self.t));
+            let live = and(
+                and(
+                    _mm256_cmp_pd::<_CMP_NLT_UQ>(t0, near),
+                    and(
+                        _mm256_cmp_pd::<_CMP_GE_OQ>(pu, s0),
+                        _mm256_cmp_pd::<_CMP_LE_OQ>(pu, s2),
+                    ),
+                ),
+                and(
+                    _mm256_cmp_pd::<_CMP_GE_OQ>(pv, s1),
+                    _mm256_cmp_pd::<_CMP_LE_OQ>(pv, s3),
+                ),
+            );
+            if _mm256_movemask_pd(live) == 0 {
+                continue;
+            }
+            let (dx, dy, dz) = (at(&self.dx), at(&self.dy), at(&self.dz));
+            let (mut t, mut u, mut s, mut hit) = (t0, at(&self.u), at(&self.s), zero);
+            let mut keep = |tc: __m256d, uc: __m256d, sc: __m256d| {
+                let take = and(
+                    live,
+                    and(
+                        _mm256_cmp_pd::<_CMP_GT_OQ>(tc, zero),
+                        _mm256_cmp_pd::<_CMP_LT_OQ>(tc, t),
+                    ),
+                );
+                t = blend(t, tc, take);
+                u = blend(u, uc, take);
+                s = blend(s, sc, take);
+                hit = _mm256_or_pd(hit, take);
+            };
+            let dot =
+                |x: __m256d, y: __m256d, z: __m256d| add(add(mul(dx, x), mul(dy, y)), mul(dz, z));
+            if SIDE {
+                let da = dot(ax, ay, az);
+                let qa = sub(one, mul(da, da));
+                let qb = mul(two, dot(cx, cy, cz));
+                let disc = sub(mul(qb, qb), mul(mul(four, qa), across_c));
+                let tc = div(
+                    sub(_mm256_xor_pd(qb, sign), _mm256_sqrt_pd(disc)),
+                    mul(two, qa),
+                );
+                let along = sub(mul(tc, da), a_axis);
+                let on = and(
+                    and(
+                        _mm256_cmp_pd::<_CMP_NLE_UQ>(qa, v(1e-18)),
+                        _mm256_cmp_pd::<_CMP_NLT_UQ>(disc, zero),
+                    ),
+                    and(
+                        _mm256_cmp_pd::<_CMP_GE_OQ>(along, zero),
+                        _mm256_cmp_pd::<_CMP_LE_OQ>(along, len),
+                    ),
+                );
+                keep(blend(nan, tc, on), div(along, len), zero);
+                if DISCS {
+                    let flat = _mm256_cmp_pd::<_CMP_NLE_UQ>(_mm256_andnot_pd(sign, da), v(1e-12));
+                    for (c, c_axis, sc) in [(&b.a, b.a_axis, 1.0), (&b.b, b.b_axis, 2.0)] {
+                        let tc = div(v(c_axis), da);
+                        let ex = sub(mul(dx, tc), v(c.x));
+                        let ey = sub(mul(dy, tc), v(c.y));
+                        let ez = sub(mul(dz, tc), v(c.z));
+                        let n2 = add(add(mul(ex, ex), mul(ey, ey)), mul(ez, ez));
+                        let on = and(flat, _mm256_cmp_pd::<_CMP_LE_OQ>(n2, r2));
+                        keep(blend(nan, tc, on), v(sc - 1.0), v(sc));
+                    }
+                }
+            }
+            if SPHERES {
+                for (c, kc, sc) in [(&b.a, b.spheres[0], 1.0), (&b.b, b.spheres[1], 2.0)] {
+                    let cd = dot(v(c.x), v(c.y), v(c.z));
+                    let disc = sub(mul(cd, cd), v(kc));
+                    let tc = sub(cd, _mm256_sqrt_pd(disc));
+                    let on = _mm256_cmp_pd::<_CMP_GE_OQ>(disc, zero);
+                    keep(blend(nan, tc, on), v(sc - 1.0), v(sc));
+                }
+            }
+            let i = blend(at(&self.i), id, hit);
+            // SAFETY: as the loads.
+            unsafe {
+                _mm256_storeu_pd(self.t.as_mut_ptr().add(k), t);
+                _mm256_storeu_pd(self.u.as_mut_ptr().add(k), u);
+                _mm256_storeu_pd(self.s.as_mut_ptr().add(k), s);
+                _mm256_storeu_pd(self.i.as_mut_ptr().add(k), i);
+            }
+        }
+    }
+
+    /// Every lane against `body` (index `id`): its side where `SIDE`, its
+    /// flat end discs where `DISCS`, its end spheres where `SPHERES`.
+    #[inline(always)]
+    fn body<const SIDE: bool, const DISCS: bool, const SPHERES: bool>(
+        &mut self,
+        body: &CameraBody,
+        id: f64,
+    ) {
+        let b = body;
+        let [s0, s1, s2, s3] = b.screen;
+        let (ax, ay, az) = (b.axis.x, b.axis.y, b.axis.z);
+        let (cx, cy, cz) = (b.across.x, b.across.y, b.across.z);
+        let r2 = b.r * b.r;
+        for k in 0..TILE_RAYS {
+            let (dx, dy, dz) = (self.dx[k], self.dy[k], self.dz[k]);
+            let (pu, pv) = (self.pu[k], self.pv[k]);
+            let live = (self.t[k] >= b.near) & (pu >= s0) & (pu <= s2) & (pv >= s1) & (pv <= s3);
+            let (mut t, mut u, mut s) = (self.t[k], self.u[k], self.s[k]);
+            let mut hit = false;
+            let mut keep = |tc: f64, uc: f64, sc: f64| {
+                let take = live & (tc > 0.0) & (tc < t);
+                t = if take { tc } else { t };
+                u = if take { uc } else { u };
+                s = if take { sc } else { s };
+                hit |= take;
+            };
+            if SIDE {
+                let da = dx * ax + dy * ay + dz * az;
+                // the side: CameraBody::side
+                let qa = 1.0 - da * da;
+                let qb = 2.0 * (dx * cx + dy * cy + dz * cz);
+                let disc = qb * qb - 4.0 * qa * b.across_c;
+                let tc = (-qb - disc.sqrt()) / (2.0 * qa);
+                let along = tc * da - b.a_axis;
+                let on = (qa > 1e-18) & (disc >= 0.0) & (along >= 0.0) & (along <= b.len);
+                keep(if on { tc } else { f64::NAN }, along / b.len, 0.0);
+                if DISCS {
+                    // the end discs: CameraBody::end_disc
+                    for (c, c_axis, sc) in [(&b.a, b.a_axis, 1.0), (&b.b, b.b_axis, 2.0)] {
+                        let tc = c_axis / da;
+                        let (ex, ey, ez) = (dx * tc - c.x, dy * tc - c.y, dz * tc - c.z);
+                        let on = (da.abs() > 1e-12) & (ex * ex + ey * ey + ez * ez <= r2);
+                        keep(if on { tc } else { f64::NAN }, sc - 1.0, sc);
+                    }
+                }
+            }
+            if SPHERES {
+                for (c, kc, sc) in [(&b.a, b.spheres[0], 1.0), (&b.b, b.spheres[1], 2.0)] {
+                    let cd = c.x * dx + c.y * dy + c.z * dz;
+                    let disc = cd * cd - kc;
+                    let tc = cd - disc.sqrt();
+                    keep(if disc >= 0.0 { tc } else { f64::NAN }, sc - 1.0, sc);
+                }
+            }
+            self.t[k] = t;
+            self.u[k] = u;
+            self.s[k] = s;
+            self.i[k] = if hit { id } else { self.i[k] };
+        }
     }
 }
 
@@ -425,8 +702,9 @@ pub(crate) struct CameraBody {
     /// Unit axis from `a` to `b`, and the length.
     axis: Vector3<f64>,
     len: f64,
-    /// `a · axis`.
+    /// `a · axis` and `b · axis`.
     a_axis: f64,
+    b_axis: f64,
     /// The part of `−a` across the axis, and its squared length less `r²`.
     across: Vector3<f64>,
     across_c: f64,
@@ -472,6 +750,7 @@ impl CameraBody {
             axis,
             len,
             a_axis: a.dot(&axis),
+            b_axis: b.dot(&axis),
             across,
             across_c: across.norm_squared() - r * r,
             spheres: [a.norm_squared() - r * r, b.norm_squared() - r * r],
@@ -852,5 +1131,38 @@ mod tests {
             }
         }
         assert!(in_windows > 100, "{in_windows}");
+    }
+
+    /// The AVX2 copy of the lane cast gives the portable one's bits, lane
+    /// for lane (on a processor without AVX2 both are the portable one).
+    #[test]
+    fn the_wide_lane_cast_is_the_portable_one() {
+        let camera = Camera::default();
+        let mut raster = Rasterizer::new();
+        let mut tiles = 0;
+        for (theta, d) in [(-70.0, 5.0), (0.0, 10.0), (45.0, 25.0), (90.0, 40.0)] {
+            let shape = Instrument::kflex().shape(theta, d).expect("shape");
+            raster.prepare(&camera, &shape);
+            let k = camera.intrinsics;
+            raster.tiles(
+                &camera,
+                Roi::whole(k.width, k.height),
+                |scene, optics, tile, bodies| {
+                    let (mut narrow, mut wide) = (Lanes::default(), Lanes::default());
+                    narrow.load(optics, tile);
+                    wide.load(optics, tile);
+                    narrow.cast(&scene.bodies, bodies, false);
+                    wide.cast(&scene.bodies, bodies, Lanes::wide());
+                    let bits = |l: &Lanes| [l.t, l.u, l.s, l.i].map(|a| a.map(f64::to_bits));
+                    assert_eq!(
+                        bits(&narrow),
+                        bits(&wide),
+                        "θ = {theta}, d = {d}, tile {tile:?}"
+                    );
+                    tiles += 1;
+                },
+            );
+        }
+        assert!(tiles > 100, "{tiles}");
     }
 }
