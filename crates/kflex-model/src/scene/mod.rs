@@ -22,7 +22,7 @@ pub use background::{Background, Tissue};
 use sensor::{
     Normals, Response, Sensor, gaussian_blur, linear_from_encoded, normal_table, response_table,
 };
-use shading::{Look, Surroundings, surface_look, tape_band, under_tape};
+use shading::{Look, SteelLooks, Surroundings, tape_band, under_tape};
 
 /// What a cached background depends on: kind, tissue colour, seed, width, height.
 type BackgroundKey = (Background, Tissue, u64, u32, u32);
@@ -206,6 +206,8 @@ pub struct SceneRenderer {
     looks: Vec<Look>,
     /// Per patch: whether it is an edge's (four looks).
     edges: Vec<bool>,
+    /// The steel among a frame's looks, made after the tiles are walked.
+    steel: SteelLooks,
     /// One row of encoded values.
     row: Vec<f32>,
     /// The camera's response (`sensor::response_table`), once made.
@@ -543,6 +545,7 @@ impl SceneRenderer {
         self.patches.clear();
         self.looks.clear();
         self.edges.clear();
+        self.steel.clear();
         let k = camera.intrinsics;
         let (w, h) = (k.width as usize, k.height as usize);
         let Some((_, background, mean)) = self.cache.as_ref() else {
@@ -561,6 +564,7 @@ impl SceneRenderer {
             patches,
             looks,
             edges,
+            steel,
             ..
         } = self;
         let (work_x0, work_y0, work_w) = (work.x0 as usize, work.y0 as usize, work.width as usize);
@@ -594,19 +598,19 @@ impl SceneRenderer {
                             let bg = [background[o], background[o + 1], background[o + 2]];
                             for (dx, dy) in EDGE_SAMPLES {
                                 let (u, v) = (x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
-                                looks.push(match scene.first_hit(camera, candidates, u, v) {
+                                match scene.first_hit(camera, candidates, u, v) {
                                     (Some(hit), d) => {
-                                        surface_look(&scene.bodies, &hit, &d, band, &env)
+                                        steel.push(&scene.bodies, &hit, &d, band, looks);
                                     }
-                                    (None, _) => Look::Done(bg),
-                                });
+                                    (None, _) => looks.push(Look::Done(bg)),
+                                }
                             }
                             patches.push((p, [0.0; 3]));
                             edges.push(true);
                         } else if let Some(i) = here {
                             let hit = &hits[i as usize];
                             let d = optics.ray(x as u32, y as u32);
-                            looks.push(surface_look(&scene.bodies, hit, &d, band, &env));
+                            steel.push(&scene.bodies, hit, &d, band, looks);
                             patches.push((p, [0.0; 3]));
                             edges.push(false);
                         }
@@ -614,6 +618,7 @@ impl SceneRenderer {
                 }
             },
         );
+        steel.fill(&env, looks);
         // then the colours: an edge's the mean of its four rays'
         let mut next = looks.iter();
         for ((_, c), &edge) in patches.iter_mut().zip(edges.iter()) {

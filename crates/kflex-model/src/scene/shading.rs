@@ -51,8 +51,20 @@ impl Surroundings<'_> {
         }
         let k = &self.camera.intrinsics;
         let [xd, yd] = self.camera.lens.distort(r.x / r.z, r.y / r.z);
-        let u = (k.fx * xd + k.cx).clamp(0.0, f64::from(k.width) - 1.0) as usize;
-        let v = (k.fy * yd + k.cy).clamp(0.0, f64::from(k.height) - 1.0) as usize;
+        self.seen(r.z, k.fx * xd + k.cx, k.fy * yd + k.cy)
+    }
+
+    /// [`Surroundings::along`] from the reflected ray's depth `z` and the
+    /// pixel position `(u, v)` it projects to (worked out only where `z` is
+    /// ahead).
+    #[inline]
+    fn seen(&self, z: f64, u: f64, v: f64) -> Seen {
+        if z < 0.05 {
+            return Seen::Colour(self.mean.map(|c| 0.3 * c));
+        }
+        let k = &self.camera.intrinsics;
+        let u = u.clamp(0.0, f64::from(k.width) - 1.0) as usize;
+        let v = v.clamp(0.0, f64::from(k.height) - 1.0) as usize;
         Seen::At(3 * (v * k.width as usize + u))
     }
 
@@ -121,49 +133,264 @@ pub(super) fn under_tape(hit: &SurfaceHit, tape: Option<(f32, f32)>) -> bool {
 }
 
 /// The look of the surface at `hit`, seen along unit `d`: tape where
-/// [`under_tape`], else steel; `env` is what the steel reflects.
-pub(super) fn surface_look(
+/// [`under_tape`], else steel; `env` is what the steel reflects. Frames
+/// make their looks by [`SteelLooks`]; this one-at-a-time form is the
+/// reference its test holds them to.
+#[cfg(test)]
+fn surface_look(
     bodies: &[CameraBody],
     hit: &SurfaceHit,
     d: &Vector3<f64>,
     tape: Option<(f32, f32)>,
     env: &Surroundings<'_>,
 ) -> Look {
-    let n = hit.normal;
-    let cos = (-n.dot(d)).clamp(0.0, 1.0);
-    let light = INSTRUMENT_LIGHT * falloff(hit.t);
     if under_tape(hit, tape) {
-        // matte: Lambert, a faint sheen
-        let diffuse = (0.15 + 0.85 * cos) * light;
-        let sheen = 0.04 * cos.powi(16) * light;
-        return Look::Done(TAPE.map(|c| (f64::from(c) * diffuse + sheen) as f32));
+        return tape_look(hit, d);
     }
-    // the backbone, seen through the gaps between discs, sits in their shadow
-    let body = &bodies[hit.body];
-    let shadow = if matches!(body.part, Part::Link(_)) && body.ends == Ends::Round {
-        0.45
-    } else {
-        1.0
-    };
-    // machined disc faces are duller than the polished sides
-    let gloss = if hit.on_end && body.ends == Ends::Flat {
-        0.3
-    } else {
-        1.0
-    };
+    let (shadow, gloss) = steel_finish(bodies, hit);
+    steel_look(d, &hit.normal, hit.t, shadow, gloss, env)
+}
+
+/// Steel's look where a ray along unit `d` meets it at distance `t` (mm),
+/// outward normal `n`, with `shadow` and `gloss` ([`steel_finish`]).
+fn steel_look(
+    d: &Vector3<f64>,
+    n: &Vector3<f64>,
+    t: f64,
+    shadow: f64,
+    gloss: f64,
+    env: &Surroundings<'_>,
+) -> Look {
+    let cos = (-n.dot(d)).clamp(0.0, 1.0);
+    let light = INSTRUMENT_LIGHT * falloff(t);
     let fresnel = STEEL_F0 + (1.0 - STEEL_F0) * (1.0 - cos).powi(5);
     // satin steel scatters some light back even at grazing incidence
     let diffuse = (0.28 + 0.42 * cos) * light * shadow;
-    let mirror = d - n * (2.0 * d.dot(&n));
+    let mirror = d - n * (2.0 * d.dot(n));
     let seen = env.along(&mirror);
     // the tissue it reflects is lit about as the steel is (no brighter than nominal)
-    let reflected = 0.22 * fresnel * shadow * gloss * falloff(hit.t).min(1.0);
+    let reflected = 0.22 * fresnel * shadow * gloss * falloff(t).min(1.0);
     let highlight = (0.9 * cos.powi(80) + 0.2 * cos.powi(10)) * light * shadow * gloss;
     Look::Steel {
         diffuse,
         reflected,
         highlight,
         seen,
+    }
+}
+
+/// The tape's look at `hit` seen along unit `d`: matte, Lambert and a faint sheen.
+fn tape_look(hit: &SurfaceHit, d: &Vector3<f64>) -> Look {
+    let cos = (-hit.normal.dot(d)).clamp(0.0, 1.0);
+    let light = INSTRUMENT_LIGHT * falloff(hit.t);
+    let diffuse = (0.15 + 0.85 * cos) * light;
+    let sheen = 0.04 * cos.powi(16) * light;
+    Look::Done(TAPE.map(|c| (f64::from(c) * diffuse + sheen) as f32))
+}
+
+/// The steel's finish at `hit`: the shadow on it (the backbone, seen
+/// through the gaps between discs, sits in their shadow) and its gloss
+/// (machined disc faces are duller than the polished sides).
+fn steel_finish(bodies: &[CameraBody], hit: &SurfaceHit) -> (f64, f64) {
+    let body = &bodies[hit.body];
+    let shadow = if matches!(body.part, Part::Link(_)) && body.ends == Ends::Round {
+        0.45
+    } else {
+        1.0
+    };
+    let gloss = if hit.on_end && body.ends == Ends::Flat {
+        0.3
+    } else {
+        1.0
+    };
+    (shadow, gloss)
+}
+
+/// A frame's steel looks, gathered while the tiles are walked and made
+/// after, four to an instruction where the processor has AVX2: the
+/// operations of [`steel_look`] in its order (no fused multiply-add, the
+/// powers as the compiler expands `powi`: squarings, the set bits' factors
+/// multiplied from the lowest), so the same bits (a test holds them equal).
+/// Each is written into its slot of the frame's looks.
+#[derive(Debug, Default, Clone)]
+pub(super) struct SteelLooks {
+    blocks: Vec<SteelBlock>,
+    /// Looks gathered.
+    len: usize,
+}
+
+/// Four looks' inputs, a field to a row: ray (x, y, z), normal (x, y, z),
+/// distance, shadow, gloss; and each look's slot.
+#[derive(Debug, Default, Clone, Copy)]
+struct SteelBlock {
+    rows: [[f64; 4]; 9],
+    slot: [u32; 4],
+}
+
+impl SteelLooks {
+    pub(super) fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    /// The look at `hit` seen along unit `d` goes into `looks[slot]`:
+    /// tape's at once, steel's by [`SteelLooks::fill`].
+    #[inline(always)]
+    pub(super) fn push(
+        &mut self,
+        bodies: &[CameraBody],
+        hit: &SurfaceHit,
+        d: &Vector3<f64>,
+        tape: Option<(f32, f32)>,
+        looks: &mut Vec<Look>,
+    ) {
+        if under_tape(hit, tape) {
+            looks.push(tape_look(hit, d));
+            return;
+        }
+        let (shadow, gloss) = steel_finish(bodies, hit);
+        let n = &hit.normal;
+        let (b, q) = (self.len / 4, self.len % 4);
+        if b == self.blocks.len() {
+            self.blocks.push(SteelBlock::default());
+        }
+        let block = &mut self.blocks[b];
+        for (row, v) in block
+            .rows
+            .iter_mut()
+            .zip([d.x, d.y, d.z, n.x, n.y, n.z, hit.t, shadow, gloss])
+        {
+            row[q] = v;
+        }
+        block.slot[q] = looks.len() as u32;
+        self.len += 1;
+        looks.push(Look::Done([0.0; 3]));
+    }
+
+    /// Makes the gathered looks and writes each into its slot of `looks`.
+    pub(super) fn fill(&self, env: &Surroundings<'_>, looks: &mut [Look]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked just above.
+            unsafe { self.fill_avx2(env, looks) };
+            return;
+        }
+        self.fill_portable(env, looks);
+    }
+
+    /// The gathered looks' blocks, each with how many looks it holds.
+    fn used(&self) -> impl Iterator<Item = (&SteelBlock, usize)> {
+        let len = self.len;
+        self.blocks
+            .iter()
+            .take(len.div_ceil(4))
+            .enumerate()
+            .map(move |(b, block)| (block, (len - 4 * b).min(4)))
+    }
+
+    /// One look at a time ([`steel_look`]).
+    fn fill_portable(&self, env: &Surroundings<'_>, looks: &mut [Look]) {
+        for (block, count) in self.used() {
+            let r = &block.rows;
+            for (q, &slot) in block.slot.iter().enumerate().take(count) {
+                let d = Vector3::new(r[0][q], r[1][q], r[2][q]);
+                let n = Vector3::new(r[3][q], r[4][q], r[5][q]);
+                if let Some(look) = looks.get_mut(slot as usize) {
+                    *look = steel_look(&d, &n, r[6][q], r[7][q], r[8][q], env);
+                }
+            }
+        }
+    }
+
+    /// [`SteelLooks::fill_portable`] four looks at a time in AVX2; the
+    /// reflected pixel's clamp and index stay scalar, as
+    /// [`Surroundings::along`] makes them. A block's unused lanes hold an
+    /// earlier frame's values or zeros, computed and dropped.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn fill_avx2(&self, env: &Surroundings<'_>, looks: &mut [Look]) {
+        use std::arch::x86_64::{
+            _CMP_GT_OQ, _CMP_LT_OQ, _mm256_add_pd as add, _mm256_blendv_pd, _mm256_cmp_pd,
+            _mm256_div_pd as div, _mm256_loadu_pd, _mm256_max_pd, _mm256_min_pd,
+            _mm256_mul_pd as mul, _mm256_set1_pd as v, _mm256_sqrt_pd, _mm256_storeu_pd,
+            _mm256_sub_pd as sub, _mm256_xor_pd,
+        };
+        // (closures here would not inherit AVX2 and stay out of line)
+        macro_rules! sq {
+            ($x:expr) => {{
+                let x = $x;
+                mul(x, x)
+            }};
+        }
+        let k = &env.camera.intrinsics;
+        let (fx, cx, fy, cy) = (v(k.fx), v(k.cx), v(k.fy), v(k.cy));
+        let four_division = v(4.0 * env.camera.lens.division);
+        let (zero, one, two) = (v(0.0), v(1.0), v(2.0));
+        for (block, count) in self.used() {
+            let r = &block.rows;
+            macro_rules! row {
+                // SAFETY: each row holds four values.
+                ($i:expr) => {
+                    unsafe { _mm256_loadu_pd(r[$i].as_ptr()) }
+                };
+            }
+            let (dx, dy, dz, nx, ny, nz) = (row!(0), row!(1), row!(2), row!(3), row!(4), row!(5));
+            let (t, shadow, gloss) = (row!(6), row!(7), row!(8));
+            // falloff(t): (30 / max(t, 1))², at most 2.5
+            let fall = _mm256_min_pd(sq!(div(v(LIGHT_MM), _mm256_max_pd(t, one))), v(2.5));
+            let nd = add(add(mul(nx, dx), mul(ny, dy)), mul(nz, dz));
+            // clamp(−n·d, 0, 1), NaN kept as `clamp` keeps it
+            let c = _mm256_xor_pd(nd, v(-0.0));
+            let c = _mm256_blendv_pd(c, zero, _mm256_cmp_pd::<_CMP_LT_OQ>(c, zero));
+            let cos = _mm256_blendv_pd(c, one, _mm256_cmp_pd::<_CMP_GT_OQ>(c, one));
+            let light = mul(v(INSTRUMENT_LIGHT), fall);
+            // (1 − cos)⁵ = x · x⁴
+            let x = sub(one, cos);
+            let fresnel = add(v(STEEL_F0), mul(v(1.0 - STEEL_F0), mul(x, sq!(sq!(x)))));
+            let diffuse = mul(mul(add(v(0.28), mul(v(0.42), cos)), light), shadow);
+            // d − n (2 d·n)
+            let twice = mul(two, add(add(mul(dx, nx), mul(dy, ny)), mul(dz, nz)));
+            let (rx, ry, rz) = (
+                sub(dx, mul(nx, twice)),
+                sub(dy, mul(ny, twice)),
+                sub(dz, mul(nz, twice)),
+            );
+            let reflected = mul(
+                mul(mul(mul(v(0.22), fresnel), shadow), gloss),
+                _mm256_min_pd(fall, one),
+            );
+            // cos⁸⁰ = cos¹⁶ · cos⁶⁴, cos¹⁰ = cos² · cos⁸
+            let c2 = sq!(cos);
+            let c8 = sq!(sq!(c2));
+            let c16 = sq!(c8);
+            let c64 = sq!(sq!(c16));
+            let shine = add(mul(v(0.9), mul(c16, c64)), mul(v(0.2), mul(c2, c8)));
+            let highlight = mul(mul(mul(shine, light), shadow), gloss);
+            // the lens (Lens::distort of the pinhole direction), then the pixel
+            let (xu, yu) = (div(rx, rz), div(ry, rz));
+            let ru2 = add(mul(xu, xu), mul(yu, yu));
+            let root = _mm256_sqrt_pd(_mm256_max_pd(sub(one, mul(four_division, ru2)), zero));
+            let s = div(two, add(one, root));
+            let (pu, pv) = (add(mul(fx, mul(xu, s)), cx), add(mul(fy, mul(yu, s)), cy));
+            let mut out = [[0.0; 4]; 6];
+            for (o, x) in out
+                .iter_mut()
+                .zip([diffuse, reflected, highlight, rz, pu, pv])
+            {
+                // SAFETY: `o` holds four values.
+                unsafe { _mm256_storeu_pd(o.as_mut_ptr(), x) };
+            }
+            let [diffuse, reflected, highlight, rz, pu, pv] = out;
+            for q in 0..count {
+                if let Some(look) = looks.get_mut(block.slot[q] as usize) {
+                    *look = Look::Steel {
+                        diffuse: diffuse[q],
+                        reflected: reflected[q],
+                        highlight: highlight[q],
+                        seen: env.seen(rz[q], pu[q], pv[q]),
+                    };
+                }
+            }
+        }
     }
 }
 
@@ -188,4 +415,98 @@ pub(super) fn tape_band(arcs: &mut [f32], o: Occlusion) -> Option<(f32, f32)> {
         *above.select_nth_unstable_by(count - 2, f32::total_cmp).1
     };
     Some((lo, hi))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::instrument::Instrument;
+    use crate::raster::Rasterizer;
+    use crate::roi::Roi;
+
+    /// A look's bits.
+    fn bits(look: &Look) -> Vec<u64> {
+        match *look {
+            Look::Done(c) => c.iter().map(|v| u64::from(v.to_bits())).collect(),
+            Look::Steel {
+                diffuse,
+                reflected,
+                highlight,
+                seen,
+            } => {
+                let mut b = vec![diffuse.to_bits(), reflected.to_bits(), highlight.to_bits()];
+                match seen {
+                    Seen::At(i) => b.push(i as u64),
+                    Seen::Colour(c) => b.extend(c.iter().map(|v| u64::from(v.to_bits()))),
+                }
+                b
+            }
+        }
+    }
+
+    /// The batched looks (AVX2 where the processor has it, and the portable
+    /// copy) are, look for look, the bits of [`surface_look`]: steel and tape, centre and
+    /// off-centre rays, reflections ahead and behind the camera.
+    #[test]
+    fn batched_looks_are_the_one_at_a_time_looks() {
+        let camera = Camera::default();
+        let k = camera.intrinsics;
+        let (w, h) = (k.width as usize, k.height as usize);
+        let image: Vec<f32> = (0..3 * w * h).map(|i| (i % 97) as f32 / 97.0).collect();
+        let env = Surroundings {
+            camera: &camera,
+            image: &image,
+            mean: [0.4, 0.2, 0.1],
+        };
+        let mut raster = Rasterizer::new();
+        let (mut batch, mut looks, mut reference) = (SteelLooks::default(), Vec::new(), Vec::new());
+        let (mut steel, mut taped, mut behind) = (0, 0, 0);
+        for (theta, d, tape) in [
+            (-80.0, 5.0, None),
+            (0.0, 10.0, Some((20.0, 40.0))),
+            (50.0, 25.0, Some((0.0, 1e9))),
+            (90.0, 40.0, None),
+        ] {
+            let shape = Instrument::kflex().shape(theta, d).expect("shape");
+            raster.prepare(&camera, &shape);
+            batch.clear();
+            looks.clear();
+            reference.clear();
+            raster.tiles(
+                &camera,
+                Roi::whole(k.width, k.height),
+                |scene, _, tile, bodies| {
+                    let [x0, y0, x1, y1] = tile;
+                    for (x, y) in (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))) {
+                        // off the pixel centre, as an edge's rays are
+                        let (u, v) = (f64::from(x) + 0.375, f64::from(y) + 0.625);
+                        if let (Some(hit), d) = scene.first_hit(&camera, bodies, u, v) {
+                            batch.push(&scene.bodies, &hit, &d, tape, &mut looks);
+                            reference.push(surface_look(&scene.bodies, &hit, &d, tape, &env));
+                        }
+                    }
+                },
+            );
+            batch.fill(&env, &mut looks);
+            assert_eq!(looks.len(), reference.len());
+            for (i, (a, b)) in looks.iter().zip(&reference).enumerate() {
+                assert_eq!(
+                    bits(a),
+                    bits(b),
+                    "θ = {theta}, d = {d}, look {i}: {a:?} {b:?}"
+                );
+                match b {
+                    Look::Done(_) => taped += 1,
+                    Look::Steel { seen, .. } => {
+                        steel += 1;
+                        behind += usize::from(matches!(seen, Seen::Colour(_)));
+                    }
+                }
+            }
+        }
+        assert!(
+            steel > 1000 && taped > 1000 && behind > 0,
+            "{steel} {taped} {behind}"
+        );
+    }
 }
