@@ -345,6 +345,39 @@ def test_ibjae_checks_its_readings_against_the_nominal_silhouette_with_a_camera(
         assert t.silhouette_iou < 0.85 and t.sigma_deg >= 45.0, t
 
 
+def test_the_silhouette_check_takes_its_instrument_and_its_least_iou(models, camera, paper_db) -> None:
+    scnn = models / "scnn_test.onnx"
+    default = kflex.Ibjae(scnn, [paper_db], camera=camera)
+    strict = kflex.Ibjae(scnn, [paper_db], camera=camera, min_silhouette_iou=1.0)
+    lenient = kflex.Ibjae(scnn, [paper_db], camera=camera, min_silhouette_iou=0.0)
+    # the same geometry but jaws opened to 80 deg: its nominal silhouettes differ at the tip
+    wide_jaws = kflex.Instrument(kflex.JointParams(), kflex.InstrumentParams(jaw_opening_deg=80.0), 2,
+                                 kflex.TranslationParams())
+    other = kflex.Ibjae(scnn, [paper_db], camera=camera, instrument=wide_jaws)
+    occlusion = {"fraction": 0.4, "position": 0.5, "region": kflex.Roi.paper(camera).to_dict()}
+    for theta in (5.0, 30.0):
+        shape = kflex.Instrument.kflex().shape(theta, 10.0)
+        clear = kflex.SceneRenderer().render(camera, shape).rgb
+        taped = kflex.SceneRenderer().render(camera, shape, kflex.FrameParams(occlusion=occlusion)).rgb
+        d, s, o = default.read(clear, [0]), strict.read(clear, [0]), other.read(clear, [0])
+        assert (s.theta_deg, s.silhouette_iou) == (d.theta_deg, d.silhouette_iou)
+        # explained by the default's 0.85, not by an IoU of 1
+        assert d.sigma_deg < 45.0 and d.silhouette_iou < 1.0 and s.sigma_deg >= 45.0, (d, s)
+        assert o.theta_deg == d.theta_deg and o.silhouette_iou < d.silhouette_iou, (o, d)
+        t, lt = default.read(taped, [0]), lenient.read(taped, [0])
+        assert t.sigma_deg >= 45.0 and lt.sigma_deg < 45.0 and lt.silhouette_iou == t.silhouette_iou
+    with pytest.raises(kflex.RangeError, match="min_silhouette_iou"):
+        kflex.Ibjae(scnn, [paper_db], camera=camera, min_silhouette_iou=1.5)
+    for kwargs in ({"instrument": wide_jaws}, {"min_silhouette_iou": 0.5}):
+        name = next(iter(kwargs))
+        with pytest.raises(ValueError, match=f"{name} is for the silhouette check, which needs camera"):
+            kflex.Ibjae(scnn, [paper_db], **kwargs)
+        with pytest.raises(ValueError, match=f"{name} is for the silhouette check"):
+            kflex.Lbhjae(models / "kbjae_test.onnx", scnn, [paper_db], kflex.KalmanParams(), **kwargs)
+    kflex.Lbhjae(models / "kbjae_test.onnx", scnn, [paper_db], kflex.KalmanParams(), camera=camera,
+                 instrument=wide_jaws, min_silhouette_iou=0.9)
+
+
 def test_ibjae_gives_none_without_an_instrument_and_refuses_bad_frames(models, camera, paper_db) -> None:
     ibjae = kflex.Ibjae(models / "scnn_test.onnx", [paper_db])
     k = camera.intrinsics

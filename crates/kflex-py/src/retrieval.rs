@@ -300,25 +300,63 @@ fn band_databases(databases: &[PyRef<'_, PyFeatureIndex>]) -> Result<Vec<BandDat
         .collect()
 }
 
-/// IBJAE over `databases` with the SCNN at `scnn` (a path); with `camera`
-/// (the nominal one the databases were rendered through), each reading is
-/// checked against the nominal `kflex` instrument's silhouette of its pose.
+/// IBJAE's silhouette check as the Python constructors take it: the
+/// nominal `camera` the databases were rendered through (no check without
+/// it), the `instrument` (`None`: `Instrument.kflex()`) and the least IoU
+/// `min_iou` (`None`: [`DEFAULT_MIN_SILHOUETTE_IOU`]).
+struct CheckArgs {
+    camera: Option<Camera>,
+    instrument: Option<Instrument>,
+    min_iou: Option<f64>,
+}
+
+impl CheckArgs {
+    fn new(
+        camera: Option<PyRef<'_, PyCamera>>,
+        instrument: Option<PyRef<'_, PyInstrument>>,
+        min_iou: Option<f64>,
+    ) -> Self {
+        Self {
+            camera: camera.map(|c| c.inner),
+            instrument: instrument.map(|i| i.inner),
+            min_iou,
+        }
+    }
+}
+
+/// IBJAE over `databases` with the SCNN at `scnn` (a path); with a camera
+/// in `check`, each reading is checked against the nominal silhouette of
+/// its pose.
 fn load_ibjae(
     py: Python<'_>,
     scnn: PathBuf,
     databases: &[PyRef<'_, PyFeatureIndex>],
     segment: Option<PySegmentParams>,
     threads: usize,
-    camera: Option<Camera>,
+    check: CheckArgs,
 ) -> Result<Ibjae> {
+    if check.camera.is_none() {
+        let given = [
+            check.instrument.is_some().then_some("instrument"),
+            check.min_iou.is_some().then_some("min_silhouette_iou"),
+        ];
+        if let Some(name) = given.into_iter().flatten().next() {
+            return Err(value_error(format!(
+                "{name} is for the silhouette check, which needs camera (the nominal camera \
+                 the databases were rendered through)"
+            )));
+        }
+    }
     let bands = band_databases(databases)?;
     let segment = segment.map_or_else(SegmentParams::default, |p| p.inner);
     Ok(py.detach(|| {
         let ibjae = Ibjae::new(Scnn::load(&scnn, threads)?, segment, bands)?;
-        match camera {
-            Some(c) => {
-                ibjae.with_silhouette_check(&c, &Instrument::kflex(), DEFAULT_MIN_SILHOUETTE_IOU)
-            }
+        match check.camera {
+            Some(c) => ibjae.with_silhouette_check(
+                &c,
+                &check.instrument.unwrap_or_else(Instrument::kflex),
+                check.min_iou.unwrap_or(DEFAULT_MIN_SILHOUETTE_IOU),
+            ),
             None => Ok(ibjae),
         }
     })?)
@@ -394,10 +432,17 @@ impl PyIbjae {
     /// none, or one lacks the metadata IBJAE needs (or has it out of range),
     /// and as `Scnn.load`. With `camera` (the nominal camera the databases
     /// were rendered through) each reading is checked against the nominal
-    /// silhouette of the pose it reads (`silhouette_iou`; under 0.85 its
-    /// `sigma_deg` is at least 45).
+    /// silhouette of `instrument` (default `Instrument.kflex()`) in the pose
+    /// it reads (`silhouette_iou`; under `min_silhouette_iou`, default 0.85,
+    /// its `sigma_deg` is at least 45). Raises `RangeError` for
+    /// `min_silhouette_iou` outside [0, 1], `ValueError` for `instrument` or
+    /// `min_silhouette_iou` without `camera`.
     #[new]
-    #[pyo3(signature = (scnn, databases, segment = None, threads = 1, camera = None))]
+    #[pyo3(signature = (
+        scnn, databases, segment = None, threads = 1, camera = None, instrument = None,
+        min_silhouette_iou = None
+    ))]
+    #[allow(clippy::too_many_arguments)] // Python's keyword arguments
     fn py_new(
         py: Python<'_>,
         scnn: PathBuf,
@@ -405,10 +450,12 @@ impl PyIbjae {
         segment: Option<PySegmentParams>,
         threads: usize,
         camera: Option<PyRef<'_, PyCamera>>,
+        instrument: Option<PyRef<'_, PyInstrument>>,
+        min_silhouette_iou: Option<f64>,
     ) -> Result<Self> {
-        let camera = camera.map(|c| c.inner);
+        let check = CheckArgs::new(camera, instrument, min_silhouette_iou);
         Ok(Self {
-            inner: load_ibjae(py, scnn, &databases, segment, threads, camera)?,
+            inner: load_ibjae(py, scnn, &databases, segment, threads, check)?,
         })
     }
 
@@ -472,10 +519,15 @@ impl PyLbhjae {
     /// (paths), IBJAE's `databases` (as for `Ibjae`), and the fusion
     /// filter's parameters `fusion`: `KalmanParams` for the paper's filter,
     /// `AdaptiveParams` for the adaptive one. Raises as `Kbjae.load` and
-    /// `Ibjae`, `RangeError` for a filter parameter out of range; `camera`
-    /// as for `Ibjae` (the silhouette check).
+    /// `Ibjae`, `RangeError` for a filter parameter out of range; `camera`,
+    /// `instrument` and `min_silhouette_iou` as for `Ibjae` (the silhouette
+    /// check).
     #[new]
-    #[pyo3(signature = (kbjae, scnn, databases, fusion, segment = None, camera = None))]
+    #[pyo3(signature = (
+        kbjae, scnn, databases, fusion, segment = None, camera = None, instrument = None,
+        min_silhouette_iou = None
+    ))]
+    #[allow(clippy::too_many_arguments)] // Python's keyword arguments
     fn py_new(
         py: Python<'_>,
         kbjae: PathBuf,
@@ -484,8 +536,10 @@ impl PyLbhjae {
         fusion: &Bound<'_, PyAny>,
         segment: Option<PySegmentParams>,
         camera: Option<PyRef<'_, PyCamera>>,
+        instrument: Option<PyRef<'_, PyInstrument>>,
+        min_silhouette_iou: Option<f64>,
     ) -> Result<Self> {
-        let camera = camera.map(|c| c.inner);
+        let check = CheckArgs::new(camera, instrument, min_silhouette_iou);
         let filter: Box<dyn Fusion + Send> = if let Ok(p) = fusion.extract::<PyKalmanParams>() {
             Box::new(PaperKalman::new(p.inner)?)
         } else if let Ok(p) = fusion.extract::<PyAdaptiveParams>() {
@@ -496,7 +550,7 @@ impl PyLbhjae {
                 fusion.get_type().name()?
             )));
         };
-        let ibjae = load_ibjae(py, scnn, &databases, segment, 1, camera)?;
+        let ibjae = load_ibjae(py, scnn, &databases, segment, 1, check)?;
         let kbjae = py.detach(|| Kbjae::load(&kbjae))?;
         Ok(Self {
             inner: Mutex::new(Lbhjae::new(kbjae, ibjae, filter)),

@@ -712,6 +712,8 @@ class Ibjae:
         segment: SegmentParams | None = None,
         threads: int = 1,
         camera: Camera | None = None,
+        instrument: Instrument | None = None,
+        min_silhouette_iou: float | None = None,
     ) -> None: ...
     @property
     def bands(self) -> list[WorkingBand]: ...
@@ -732,6 +734,8 @@ class Lbhjae:
         fusion: KalmanParams | AdaptiveParams,
         segment: SegmentParams | None = None,
         camera: Camera | None = None,
+        instrument: Instrument | None = None,
+        min_silhouette_iou: float | None = None,
     ) -> None: ...
     def step(
         self,
