@@ -78,3 +78,12 @@ def test_bad_input_raises_and_changes_nothing() -> None:
     with pytest.raises(TypeError):
         kf.run(0.01, np.zeros(5), np.zeros(4))
     assert kflex.KalmanParams().rate == "as_run"
+
+
+def test_the_adaptive_filter_rejects_a_reading_with_a_hidden_part() -> None:
+    flagged, plain = kflex.AdaptiveKalman(), kflex.AdaptiveKalman()
+    for _ in range(50):
+        a = flagged.step(0.01, kbjae_deg=20.0, ibjae_deg=26.0, ibjae_sigma_deg=1.0, ibjae_occluded=True)
+        b = plain.step(0.01, kbjae_deg=20.0, ibjae_deg=26.0, ibjae_sigma_deg=1.0)
+    assert a.ibjae == "gated" and abs(a.theta_hat_deg - 20.0) < 0.5, a
+    assert b.ibjae == "used" and abs(b.theta_hat_deg - 26.0) < 1.0, b

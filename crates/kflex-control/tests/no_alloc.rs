@@ -156,6 +156,7 @@ fn fusion_steps_allocate_nothing_accepted_or_rejected() {
                 // a camera frame every third tick, an outlier now and then
                 ibjae_deg: (k % 3 == 0).then_some(if k % 51 == 0 { 80.0 } else { theta }),
                 ibjae_sigma_deg: (k % 2 == 0).then_some(2.5),
+                ibjae_occluded: false,
             };
             let (e, n) = allocations(|| f.step(0.01, m));
             assert!(e.unwrap().theta_hat_deg.is_finite());

@@ -104,6 +104,7 @@ fn bench(c: &mut Criterion) {
         kbjae_deg: Some(theta),
         ibjae_deg: Some(theta + 0.5),
         ibjae_sigma_deg: Some(1.0),
+        ibjae_occluded: false,
     };
     c.bench_function("stage_kalman", |b| {
         b.iter(|| black_box(fusion.step(0.01, black_box(m)).expect("fusion")))

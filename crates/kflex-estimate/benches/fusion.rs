@@ -15,6 +15,7 @@ fn bench(c: &mut Criterion) {
         kbjae_deg: Some(20.0),
         ibjae_deg: Some(21.0),
         ibjae_sigma_deg: None,
+        ibjae_occluded: false,
     };
     let mut paper = PaperKalman::new(KalmanParams::default()).expect("params");
     c.bench_function("fusion_paper_tick", |b| {

@@ -141,6 +141,7 @@ impl Lbhjae {
                 kbjae_deg: Some(kbjae_deg),
                 ibjae_deg: ibjae.map(|r| r.theta_deg),
                 ibjae_sigma_deg: ibjae.map(|r| r.sigma_deg),
+                ibjae_occluded: ibjae.is_some_and(|r| r.occluded),
             },
         )?;
         self.started = true;

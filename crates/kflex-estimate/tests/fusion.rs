@@ -127,6 +127,7 @@ fn adaptive_on_a_sine(hz: f64) -> f64 {
                     kbjae_deg: Some(truth + 3.0),
                     ibjae_deg: frame.then_some(truth),
                     ibjae_sigma_deg: None,
+                    ibjae_occluded: false,
                 },
             )
             .unwrap();
@@ -156,6 +157,7 @@ fn a_constant_kbjae_offset_becomes_its_bias() {
                 kbjae_deg: Some(27.0),
                 ibjae_deg: Some(20.0),
                 ibjae_sigma_deg: None,
+                ibjae_occluded: false,
             },
         )
         .unwrap();
@@ -212,6 +214,7 @@ fn an_unsure_camera_does_not_start_the_filter() {
                     // biased by the tape, and saying so
                     ibjae_deg: Some(theta + 30.0),
                     ibjae_sigma_deg: Some(unsure),
+                    ibjae_occluded: false,
                 },
             )
             .unwrap();
@@ -231,10 +234,51 @@ fn an_unsure_camera_does_not_start_the_filter() {
                 kbjae_deg: Some(20.0),
                 ibjae_deg: Some(25.0),
                 ibjae_sigma_deg: Some(1.0),
+                ibjae_occluded: false,
             },
         )
         .unwrap();
     assert!((e.theta_hat_deg - 25.0).abs() < 1.0, "{e:?}");
+}
+
+/// A camera reading that takes part of the instrument as hidden is no
+/// absolute reference for the adaptive filter: rejected (it neither starts
+/// the filter nor teaches KBJAE a bias), however sure it says it is; the
+/// paper's filter takes it as any reading.
+#[test]
+fn the_adaptive_filter_rejects_readings_with_a_hidden_part() {
+    let m = |theta: f64, occluded: bool| Measurements {
+        kbjae_deg: Some(theta),
+        // an occluder's bias, said with a small uncertainty
+        ibjae_deg: Some(theta + 6.0),
+        ibjae_sigma_deg: Some(1.0),
+        ibjae_occluded: occluded,
+    };
+    let mut adaptive = AdaptiveKalman::new(AdaptiveParams::default()).unwrap();
+    let mut paper = PaperKalman::new(KalmanParams::default()).unwrap();
+    let mut paper_unflagged = paper.clone();
+    let (mut taken, mut seen) = (adaptive.clone(), 0.0);
+    for k in 0..300 {
+        let theta = 20.0 + 10.0 * (f64::from(k) * 0.01).sin();
+        let e = adaptive.step(0.01, m(theta, true)).unwrap();
+        assert!(
+            matches!(e.ibjae, SensorUse::Gated { .. }),
+            "tick {k}: {e:?}"
+        );
+        assert!((e.theta_hat_deg - theta).abs() < 1.0, "tick {k}: {e:?}");
+        // unflagged, the same readings set the angle
+        let t = taken.step(0.01, m(theta, false)).unwrap();
+        seen = t.theta_hat_deg - theta;
+        // the paper's filter takes the flag for nothing
+        let p = paper.step(0.01, m(theta, true)).unwrap();
+        assert_eq!(p, paper_unflagged.step(0.01, m(theta, false)).unwrap());
+    }
+    assert!(
+        adaptive.kbjae_bias_deg().abs() < 0.5,
+        "{}",
+        adaptive.kbjae_bias_deg()
+    );
+    assert!((seen - 6.0).abs() < 1.0, "unflagged: {seen}");
 }
 
 /// A stretch of readings IBJAE flags as unexplained (tape) makes the camera
@@ -252,6 +296,7 @@ fn flagged_readings_do_not_make_the_camera_trusted_more() {
                 kbjae_deg: Some(20.0),
                 ibjae_deg: ibjae.map(|r| r.0),
                 ibjae_sigma_deg: ibjae.map(|r| r.1),
+                ibjae_occluded: false,
             },
         )
         .unwrap()
@@ -314,6 +359,7 @@ fn rejects_unchanged(filter: &mut dyn Fusion) {
                     kbjae_deg: Some(10.0),
                     ibjae_deg: Some(11.0),
                     ibjae_sigma_deg: Some(2.0),
+                    ibjae_occluded: false,
                 },
             )
             .unwrap();
@@ -420,7 +466,7 @@ proptest! {
             Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap()),
         ];
         for (dt, z1, z2, sigma) in ticks {
-            let m = Measurements { kbjae_deg: z1, ibjae_deg: z2, ibjae_sigma_deg: sigma };
+            let m = Measurements { kbjae_deg: z1, ibjae_deg: z2, ibjae_sigma_deg: sigma, ibjae_occluded: false };
             for f in &mut filters {
                 let e = f.step(dt, m).unwrap();
                 let [[a, b], [c, d]] = e.covariance;

@@ -50,6 +50,7 @@ fn check(name: &str, params: KalmanParams, tick_s: f64) {
                     kbjae_deg: row.z1,
                     ibjae_deg: row.z2,
                     ibjae_sigma_deg: None,
+                    ibjae_occluded: false,
                 },
             )
             .unwrap();

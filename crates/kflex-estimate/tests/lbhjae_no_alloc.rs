@@ -14,8 +14,8 @@ mod paper_ibjae;
 use kflex_estimate::{
     AdaptiveKalman, AdaptiveParams, DEFAULT_MIN_SILHOUETTE_IOU, Fusion, Kbjae, Lbhjae, RgbView,
 };
-use kflex_model::{Camera, Command, FrameParams, Instrument, SceneRenderer};
-use paper_ibjae::{data, ibjae};
+use kflex_model::{Camera, Command, FrameParams, Instrument, Occlusion, SceneRenderer};
+use paper_ibjae::{data, ibjae, paper_band};
 
 #[global_allocator]
 static GLOBAL: counting::Counting = counting::Counting;
@@ -30,16 +30,21 @@ fn an_lbhjae_tick_allocates_nothing_after_the_first_frames() {
     let fusion: Box<dyn Fusion + Send> =
         Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap());
     let mut lbhjae = Lbhjae::new(kbjae, ibjae, fusion);
-    // frames rendered beforehand: the renderer is not under test
+    // frames rendered beforehand: the renderer is not under test; the last
+    // two under tape over the middle of the instrument, so that the check
+    // reads a hidden part (its band's grid of silhouettes is rendered then)
     let mut renderer = SceneRenderer::new();
+    let roi = paper_band(&camera).roi;
     let frames: Vec<_> = (0..6)
         .map(|k| {
             let shape = Instrument::kflex()
                 .shape(10.0 + 5.0 * f64::from(k), 10.0)
                 .unwrap();
-            renderer
-                .render(&camera, &shape, &FrameParams::default())
-                .unwrap()
+            let params = FrameParams {
+                occlusion: (k >= 4).then(|| Occlusion::new(0.4, 0.5).within(roi)),
+                ..FrameParams::default()
+            };
+            renderer.render(&camera, &shape, &params).unwrap()
         })
         .collect();
     let views: Vec<RgbView> = frames
@@ -55,13 +60,14 @@ fn an_lbhjae_tick_allocates_nothing_after_the_first_frames() {
         lbhjae.step(command(k), 0.01, None).unwrap();
     }
     let before = counting::allocations();
-    let mut read = 0;
+    let (mut read, mut hidden) = (0, 0);
     for k in 0..40 {
         let frame = (k % 10 == 0).then(|| &views[2 + (k / 10) % 4]);
         let e = lbhjae.step(command(k), 0.01, frame).unwrap();
         read += usize::from(e.ibjae.is_some());
+        hidden += usize::from(e.ibjae.is_some_and(|r| r.occluded));
     }
     let after = counting::allocations();
-    assert_eq!(read, 4);
+    assert_eq!((read, hidden), (4, 2));
     assert_eq!(after - before, 0, "allocations in 40 ticks with 4 frames");
 }

@@ -118,6 +118,7 @@ fn run_series<'py>(
                             kbjae_deg: z1[k],
                             ibjae_deg: z2[k],
                             ibjae_sigma_deg: sg[k],
+                            ibjae_occluded: false,
                         },
                     )
                     .map_err(Into::into)
@@ -168,10 +169,15 @@ macro_rules! fusion_class {
             }
 
             /// One tick of `dt_s` seconds with this tick's measurements (deg;
-            /// None where a sensor has none). Raises `ValueError` for a NaN or
-            /// infinite value or `RangeError` for `dt_s`; the filter is then
-            /// unchanged.
-            #[pyo3(signature = (dt_s, kbjae_deg = None, ibjae_deg = None, ibjae_sigma_deg = None))]
+            /// None where a sensor has none); `ibjae_occluded`: IBJAE's
+            /// reading takes part of the instrument as hidden
+            /// (`IbjaeReading.occluded`; the adaptive filter rejects it).
+            /// Raises `ValueError` for a NaN or infinite value or
+            /// `RangeError` for `dt_s`; the filter is then unchanged.
+            #[pyo3(signature = (
+                dt_s, kbjae_deg = None, ibjae_deg = None, ibjae_sigma_deg = None,
+                ibjae_occluded = false
+            ))]
             fn step(
                 &mut self,
                 py: Python<'_>,
@@ -179,6 +185,7 @@ macro_rules! fusion_class {
                 kbjae_deg: Option<f64>,
                 ibjae_deg: Option<f64>,
                 ibjae_sigma_deg: Option<f64>,
+                ibjae_occluded: bool,
             ) -> Result<PyEstimate> {
                 let e = self.inner.step(
                     dt_s,
@@ -186,6 +193,7 @@ macro_rules! fusion_class {
                         kbjae_deg,
                         ibjae_deg,
                         ibjae_sigma_deg,
+                        ibjae_occluded,
                     },
                 )?;
                 Ok(estimate(py, &e))

@@ -362,13 +362,19 @@ fn load_ibjae(
     })?)
 }
 
-/// What IBJAE read from one frame: the nearest database silhouette's pose
-/// (`theta_deg`, `translation_mm`), its feature `distance`, `sigma_deg`
-/// (that distance in degrees of bend, at least half the grid's step: the
-/// reading's uncertainty; at least 45 where the silhouette check finds the
-/// reading does not explain the silhouette), `band` (which database
-/// answered) and `silhouette_iou` (with the check: the IoU between the
-/// segmented silhouette and the nominal one of the pose read; else `None`).
+/// What IBJAE read from one frame: the database pose read (`theta_deg`,
+/// `translation_mm`: the nearest silhouette's, or with `occluded` the one
+/// that explains the visible pixels), its feature `distance`, `sigma_deg`
+/// (the reading's uncertainty: that distance in degrees of bend, at least
+/// half the grid's step; at least 45 where the silhouette check finds the
+/// reading unexplained; 5 with `occluded`), `band` (which database
+/// answered), `silhouette_iou` (with the check: the IoU between the
+/// segmented silhouette and the nominal one of the pose read; else `None`),
+/// `occluded` (with the check: the retrieved pose did not explain the
+/// silhouette, and the pose read is the grid's that explains the visible
+/// pixels with the rest of the instrument hidden, the visible part pinning
+/// the bend to ±5 deg) and `consistent_deg` (with `occluded`: the lowest and
+/// highest bend as consistent with the visible pixels).
 #[pyclass(name = "IbjaeReading", module = "kflex", frozen, get_all)]
 pub struct PyIbjaeReading {
     /// Bend, deg.
@@ -383,6 +389,11 @@ pub struct PyIbjaeReading {
     band: usize,
     /// IoU with the nominal silhouette of the pose read (with the check).
     silhouette_iou: Option<f64>,
+    /// Whether the pose read takes part of the instrument as hidden.
+    occluded: bool,
+    /// With `occluded`: the lowest and highest bend consistent with the
+    /// visible pixels, deg.
+    consistent_deg: Option<[f64; 2]>,
 }
 
 #[pymethods]
@@ -390,14 +401,15 @@ impl PyIbjaeReading {
     fn __repr__(&self) -> String {
         format!(
             "IbjaeReading(theta_deg={}, translation_mm={}, distance={}, sigma_deg={}, band={}, \
-             silhouette_iou={})",
+             silhouette_iou={}, occluded={})",
             self.theta_deg,
             self.translation_mm,
             self.distance,
             self.sigma_deg,
             self.band,
             self.silhouette_iou
-                .map_or_else(|| "None".to_string(), |v| v.to_string())
+                .map_or_else(|| "None".to_string(), |v| v.to_string()),
+            if self.occluded { "True" } else { "False" }
         )
     }
 }
@@ -411,6 +423,8 @@ impl From<IbjaeReading> for PyIbjaeReading {
             sigma_deg: r.sigma_deg,
             band: r.band,
             silhouette_iou: r.silhouette_iou,
+            occluded: r.occluded,
+            consistent_deg: r.consistent_deg,
         }
     }
 }
@@ -434,7 +448,9 @@ impl PyIbjae {
     /// were rendered through) each reading is checked against the nominal
     /// silhouette of `instrument` (default `Instrument.kflex()`) in the pose
     /// it reads (`silhouette_iou`; under `min_silhouette_iou`, default 0.85,
-    /// its `sigma_deg` is at least 45). Raises `RangeError` for
+    /// a pose with a hidden part is read instead where one explains the
+    /// visible pixels, `occluded`, else its `sigma_deg` is at least 45).
+    /// Raises `RangeError` for
     /// `min_silhouette_iou` outside [0, 1], `ValueError` for `instrument` or
     /// `min_silhouette_iou` without `camera`.
     #[new]

@@ -46,6 +46,12 @@ pub struct Measurements {
     /// certain). [`AdaptiveKalman`] uses it as a lower bound on the
     /// camera's noise; [`PaperKalman`] ignores it (the paper's `σ_z` is fixed).
     pub ibjae_sigma_deg: Option<f64>,
+    /// Whether IBJAE's angle takes part of the instrument as hidden
+    /// (`IbjaeReading::occluded`): [`AdaptiveKalman`] rejects such a reading
+    /// (the camera is its absolute reference, and an occluder's bias would
+    /// become KBJAE's); [`PaperKalman`] takes it as any other.
+    #[serde(default)]
+    pub ibjae_occluded: bool,
 }
 
 /// What a filter step did with one sensor's measurement.

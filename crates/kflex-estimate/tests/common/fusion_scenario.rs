@@ -147,6 +147,7 @@ pub fn fused(run: &Run, filter: &mut dyn kflex_estimate::Fusion) -> Vec<f64> {
                         kbjae_deg: run.kbjae[k],
                         ibjae_deg: run.ibjae[k],
                         ibjae_sigma_deg: run.ibjae_sigma[k],
+                        ibjae_occluded: false,
                     },
                 )
                 .expect("finite measurements")

@@ -432,6 +432,7 @@ class _Fusion:
         kbjae_deg: float | None = None,
         ibjae_deg: float | None = None,
         ibjae_sigma_deg: float | None = None,
+        ibjae_occluded: bool = False,
     ) -> Estimate: ...
     def run(
         self,
@@ -703,6 +704,8 @@ class IbjaeReading:
     sigma_deg: float
     band: int
     silhouette_iou: float | None
+    occluded: bool
+    consistent_deg: list[float] | None
 
 class Ibjae:
     def __init__(
