@@ -263,7 +263,10 @@ pub const MAX_UNEXPLAINED_SHARE: f64 = 0.1;
 /// 48×48 pixels as bits, row-major.
 type Bits = [u64; BITS_WORDS];
 const BITS_WORDS: usize = (SCNN_SIDE * SCNN_SIDE) as usize / 64;
-const _: () = assert!((SCNN_SIDE * SCNN_SIDE).is_multiple_of(64), "whole words of bits");
+const _: () = assert!(
+    (SCNN_SIDE * SCNN_SIDE).is_multiple_of(64),
+    "whole words of bits"
+);
 
 /// A 48×48 mask's pixels as bits.
 fn bits_of(mask: &Mask) -> Bits {
