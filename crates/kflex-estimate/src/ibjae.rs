@@ -306,15 +306,16 @@ impl SilhouetteCheck {
     }
 
     /// The pose of band `b` (database `db`) that explains the segmented
-    /// silhouette `seen` with the rest of the instrument hidden, its entry,
-    /// and the lowest and highest bends of the poses as consistent (see
-    /// "Hidden parts" in the module docs); `None` where no pose explains it.
+    /// silhouette `seen` with the rest of the instrument hidden: its entry,
+    /// the lowest and highest bends of the poses as consistent (see "Hidden
+    /// parts" in the module docs), and its IoU with `seen` (as
+    /// [`Mask::iou`] gives it); `None` where no pose explains it.
     fn hidden(
         &mut self,
         b: usize,
         db: &BandDatabase,
         seen: &Mask,
-    ) -> Result<Option<(usize, [f64; 2])>> {
+    ) -> Result<Option<(usize, [f64; 2], f64)>> {
         let poses = db.index.poses();
         if self.grid.get(b).is_some_and(|g| g.len() < poses.len()) {
             for &pose in &poses[self.grid[b].len()..] {
@@ -354,7 +355,16 @@ impl SilhouetteCheck {
             lo = lo.min(pose.theta_deg);
             hi = hi.max(pose.theta_deg);
         }
-        Ok(best.map(|(_, _, e)| (e, [lo, hi])))
+        Ok(best.map(|(_, _, e)| {
+            let n = &grid[e];
+            let union = count(&|w| s[w] | n[w]);
+            let iou = if union == 0 {
+                1.0
+            } else {
+                f64::from(count(&|w| s[w] & n[w])) / f64::from(union)
+            };
+            (e, [lo, hi], iou)
+        }))
     }
 }
 
@@ -766,7 +776,7 @@ impl Ibjae {
                 if iou < c.min_iou {
                     reading.sigma_deg = reading.sigma_deg.max(UNEXPLAINED_SIGMA_DEG);
                     // taken only where the visible pixels pin the bend
-                    if let Some((e, [lo, hi])) = c.hidden(i, db, &segmented.small)?
+                    if let Some((e, [lo, hi], iou)) = c.hidden(i, db, &segmented.small)?
                         && 0.5 * (hi - lo) <= HIDDEN_SIGMA_DEG
                         && let Some(&pose) = db.index.poses().get(e)
                     {
@@ -781,8 +791,6 @@ impl Ibjae {
                             .map(|(a, b)| (a - b) * (a - b))
                             .sum();
                         let distance = f64::from(d2.sqrt());
-                        c.render(roi, pose)?;
-                        let iou = segmented.small.iou(&c.mask)?;
                         // a pose that explains the silhouette: nothing hidden
                         let explained = iou >= c.min_iou;
                         reading = IbjaeReading {
