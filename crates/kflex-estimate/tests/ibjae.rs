@@ -465,3 +465,67 @@ fn a_hidden_part_is_read_around_where_the_rest_explains_it() {
         "worst error under the middle tape {worst} deg"
     );
 }
+
+/// A silhouette that holds what no pose explains (steel pasted where there
+/// is only tissue: a wrong segmentation, not an occlusion) is not read as a
+/// hidden part: every grid pose leaves the pasted pixels unexplained, and
+/// the reading stays unexplained. (Two rules see to it here, each alone:
+/// the best pose leaving more than `MAX_UNEXPLAINED_SHARE` unexplained,
+/// and the poses as consistent, within a quarter of that, spreading wider
+/// than ±`HIDDEN_SIGMA_DEG`.) The same frame without the paste is read with
+/// a hidden part.
+#[test]
+fn pixels_no_pose_explains_are_no_hidden_part() {
+    use kflex_estimate::{DEFAULT_MIN_SILHOUETTE_IOU, UNEXPLAINED_SIGMA_DEG};
+    use kflex_model::Occlusion;
+
+    let camera = Camera::default();
+    let instrument = Instrument::kflex();
+    let mut checked = ibjae(&camera)
+        .with_silhouette_check(&camera, &instrument, DEFAULT_MIN_SILHOUETTE_IOU)
+        .unwrap();
+    let roi = paper_band(&camera).roi;
+    let shape = instrument.shape(20.0, 10.0).unwrap();
+    let params = FrameParams {
+        occlusion: Some(Occlusion::new(0.4, 0.5).within(roi)),
+        ..FrameParams::default()
+    };
+    let f = SceneRenderer::new()
+        .render(&camera, &shape, &params)
+        .unwrap();
+    let mut read = |rgb: &[u8]| {
+        let view = RgbView::packed(rgb, f.width, f.height).unwrap();
+        checked.read(&view, &[0]).unwrap().expect("an instrument")
+    };
+    assert!(read(&f.rgb).occluded, "the frame as rendered");
+    // a block of the shaft's steel (a 10 × 10 px patch, scaled 4×) pasted
+    // into the region's top-right corner, where the instrument never is:
+    // 40 × 40 px, about a fifth of the instrument's pixels in the region
+    let steel = |x: u32, y: u32| (0..10).all(|d| (0..10).all(|e| f.instrument.get(x + d, y + e)));
+    let (sx, sy) = (roi.y0..roi.y0 + roi.height - 10)
+        .rev()
+        .flat_map(|y| (roi.x0..roi.x0 + roi.width - 10).map(move |x| (x, y)))
+        .find(|&(x, y)| steel(x, y))
+        .expect("a 10 × 10 patch of steel in the region");
+    let (tx, ty) = (roi.x0 + roi.width - 44, roi.y0 + 4);
+    for (x, y) in [(tx, ty), (tx + 39, ty), (tx, ty + 39), (tx + 39, ty + 39)] {
+        assert!(
+            !f.instrument.get(x, y),
+            "the paste lands on tissue at ({x}, {y})"
+        );
+    }
+    let mut pasted = f.rgb.clone();
+    for dy in 0..40 {
+        for dx in 0..40 {
+            let from = 3 * ((sy + dy / 4) * f.width + sx + dx / 4) as usize;
+            let to = 3 * ((ty + dy) * f.width + tx + dx) as usize;
+            let px = [f.rgb[from], f.rgb[from + 1], f.rgb[from + 2]];
+            pasted[to..to + 3].copy_from_slice(&px);
+        }
+    }
+    let r = read(&pasted);
+    assert!(
+        !r.occluded && r.sigma_deg >= UNEXPLAINED_SIGMA_DEG,
+        "with steel where no pose reaches: {r:?}"
+    );
+}
