@@ -6,7 +6,7 @@
 #[path = "support/paper_ibjae.rs"]
 mod paper_ibjae;
 
-use paper_ibjae::{data, ibjae, paper_band};
+use paper_ibjae::{checked_ibjae, data, ibjae, paper_band};
 
 use kflex_estimate::{
     AdaptiveKalman, AdaptiveParams, EstimateError, Fusion, Ibjae, IbjaeReading, Kbjae, Lbhjae,
@@ -309,9 +309,7 @@ fn the_silhouette_check_scores_the_pose_read_and_flags_what_it_does_not_explain(
     let camera = Camera::default();
     let instrument = Instrument::kflex();
     let mut plain = ibjae(&camera);
-    let mut checked = ibjae(&camera)
-        .with_silhouette_check(&camera, &instrument, DEFAULT_MIN_SILHOUETTE_IOU)
-        .unwrap();
+    let mut checked = checked_ibjae(&camera);
     let mut lenient = ibjae(&camera)
         .with_silhouette_check(&camera, &instrument, 0.0)
         .unwrap();
@@ -429,9 +427,7 @@ fn a_hidden_part_is_read_around_where_the_rest_explains_it() {
 
     let camera = Camera::default();
     let instrument = Instrument::kflex();
-    let mut checked = ibjae(&camera)
-        .with_silhouette_check(&camera, &instrument, DEFAULT_MIN_SILHOUETTE_IOU)
-        .unwrap();
+    let mut checked = checked_ibjae(&camera);
     let roi = paper_band(&camera).roi;
     let mut renderer = SceneRenderer::new();
     let mut read = |theta: f64, occlusion: Occlusion| {
@@ -476,14 +472,12 @@ fn a_hidden_part_is_read_around_where_the_rest_explains_it() {
 /// a hidden part.
 #[test]
 fn pixels_no_pose_explains_are_no_hidden_part() {
-    use kflex_estimate::{DEFAULT_MIN_SILHOUETTE_IOU, UNEXPLAINED_SIGMA_DEG};
+    use kflex_estimate::UNEXPLAINED_SIGMA_DEG;
     use kflex_model::Occlusion;
 
     let camera = Camera::default();
     let instrument = Instrument::kflex();
-    let mut checked = ibjae(&camera)
-        .with_silhouette_check(&camera, &instrument, DEFAULT_MIN_SILHOUETTE_IOU)
-        .unwrap();
+    let mut checked = checked_ibjae(&camera);
     let roi = paper_band(&camera).roi;
     let shape = instrument.shape(20.0, 10.0).unwrap();
     let params = FrameParams {

@@ -11,11 +11,9 @@ mod counting;
 #[path = "support/paper_ibjae.rs"]
 mod paper_ibjae;
 
-use kflex_estimate::{
-    AdaptiveKalman, AdaptiveParams, DEFAULT_MIN_SILHOUETTE_IOU, Fusion, Kbjae, Lbhjae, RgbView,
-};
+use kflex_estimate::{AdaptiveKalman, AdaptiveParams, Fusion, Kbjae, Lbhjae, RgbView};
 use kflex_model::{Camera, Command, FrameParams, Instrument, Occlusion, SceneRenderer};
-use paper_ibjae::{data, ibjae, paper_band};
+use paper_ibjae::{checked_ibjae, data, paper_band};
 
 #[global_allocator]
 static GLOBAL: counting::Counting = counting::Counting;
@@ -23,9 +21,7 @@ static GLOBAL: counting::Counting = counting::Counting;
 #[test]
 fn an_lbhjae_tick_allocates_nothing_after_the_first_frames() {
     let camera = Camera::default();
-    let ibjae = ibjae(&camera)
-        .with_silhouette_check(&camera, &Instrument::kflex(), DEFAULT_MIN_SILHOUETTE_IOU)
-        .unwrap();
+    let ibjae = checked_ibjae(&camera);
     let kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
     let fusion: Box<dyn Fusion + Send> =
         Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap());

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use kflex_estimate::{Ibjae, Scnn, SegmentParams, build_band_database};
+use kflex_estimate::{DEFAULT_MIN_SILHOUETTE_IOU, Ibjae, Scnn, SegmentParams, build_band_database};
 use kflex_model::{Camera, Instrument, PoseRange, Roi, WorkingBand};
 
 /// A file of `tests/data`.
@@ -39,4 +39,12 @@ pub fn ibjae(camera: &Camera) -> Ibjae {
     .unwrap();
     assert_eq!(db.index.len(), 51);
     Ibjae::new(scnn, SegmentParams::default(), vec![db]).unwrap()
+}
+
+/// [`ibjae`] with the silhouette check of the nominal instrument at the
+/// default least IoU.
+pub fn checked_ibjae(camera: &Camera) -> Ibjae {
+    ibjae(camera)
+        .with_silhouette_check(camera, &Instrument::kflex(), DEFAULT_MIN_SILHOUETTE_IOU)
+        .unwrap()
 }
