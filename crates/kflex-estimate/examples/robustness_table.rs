@@ -9,7 +9,8 @@
 //! `examples/segment_case.rs`, with `KFLEX_UNDER=1` every case under a goal;
 //! `KFLEX_MATRIX_SEED=0,100,200` pools the cases over other backgrounds of
 //! the same organs, their seeds moved by each offset; `KFLEX_ONLY=blur` keeps
-//! the conditions whose name holds `blur`)
+//! the conditions whose name holds `blur`; `KFLEX_FINGERPRINT=1` prints a
+//! hash of every mask found, to check that a change leaves them alike)
 
 #[path = "../tests/matrix/mod.rs"]
 mod matrix;
@@ -38,6 +39,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let mut segmenter = Segmenter::new(params)?;
     let cases = cases();
+    // `KFLEX_FINGERPRINT=1`: a hash of every segmentation's masks (full and
+    // 48×48), printed at the end, to check that a change leaves them alike
+    let mut fingerprint = std::env::var_os("KFLEX_FINGERPRINT").map(|_| 0xcbf2_9ce4_8422_2325_u64);
     println!(
         "{} cases a condition (backgrounds {:?} × θ {:?} deg × d {:?} mm, background seed \
          offsets {offsets:?}), each in the working region of its pose (`WorkingRegions::full`)",
@@ -78,6 +82,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .flat_map(|o| cases.iter().map(move |c| (o, c)))
         {
             bench.seed_offset = offset;
+            if let Some(h) = fingerprint.as_mut() {
+                let (frame, _) = bench.frame(case, condition);
+                let found =
+                    segmenter.segment(&frame.rgb, frame.width, frame.height, bench.roi_of(case));
+                let bytes: Vec<u8> = match &found {
+                    Ok(s) => s
+                        .full
+                        .data()
+                        .iter()
+                        .chain(s.small.data())
+                        .copied()
+                        .collect(),
+                    Err(e) => e.to_string().into_bytes(),
+                };
+                for b in bytes {
+                    *h = (*h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+                }
+            }
             match bench.score(&mut segmenter, case, condition) {
                 Ok(s) => {
                     if worst.is_none_or(|(w, _, _)| s.roi < w) {
@@ -147,6 +169,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
             }
         }
+    }
+    if let Some(h) = fingerprint {
+        println!("fingerprint of the masks: {h:016x}");
     }
     println!(
         "frames without the instrument called instrument: {} of {total} {:?}",
