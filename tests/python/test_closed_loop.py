@@ -49,6 +49,13 @@ def test_compensation_on_a_stand_in_cuts_the_rmse() -> None:
     assert set(frames) == {"captured", "dropped", "delivered", "stale"}
     assert 0 < frames["dropped"] < frames["captured"]
     assert compensated.estimation_rmse_deg() < 3.0
+    # the stand-in camera tells its reading and noise on the ticks a frame reached it
+    details = compensated.details
+    read = np.isfinite(details["ibjae_deg"])
+    assert 0 < read.sum() <= frames["delivered"]
+    np.testing.assert_array_equal(details["ibjae_deg"][read], compensated.theta_hat_deg[read])
+    assert np.all(details["ibjae_sigma_deg"][read] == 1.0)
+    assert np.isnan(details["ibjae_sigma_deg"][~read]).all() and np.isnan(details["kbjae_deg"]).all()
 
 
 def test_kbjae_closes_the_loop_without_frames() -> None:

@@ -455,3 +455,56 @@ def test_lbhjae_fuses_both_and_a_bad_tick_changes_nothing(models, camera, paper_
     # KBJAE inside reads a rate given as given (the master's, closed loop)
     kb.reset()
     assert paper.step(11.0, 10.0, 0.01, rate_deg_per_s=-8.0).kbjae_deg == kb.predict(11.0, -8.0)
+
+
+def test_run_experiment_tells_what_went_into_each_estimate(models, paper_db, tmp_path) -> None:
+    """A grid's runs carry, per estimator, what went into its estimate each
+    tick (``details``): LBHJAE's readings and uncertainty, IBJAE's reading on
+    the ticks that read a frame, nothing beyond its estimate for KBJAE."""
+    # a models directory of the test models, with the paper's band as its one database
+    shutil.copy(models / "kbjae_test.onnx", tmp_path / "kbjae.onnx")
+    shutil.copy(models / "scnn_test.onnx", tmp_path / "scnn.onnx")
+    (tmp_path / "db").mkdir()
+    paper_db.save(tmp_path / "db" / "band-000.kfdb")
+    (tmp_path / "db" / "bands").write_text("1")
+    grid = kflex.ExperimentGrid(
+        cases=[{"table": "V", "kind": "estimation", "sheath_deg": 0.0, "occlusion": "0%"}],
+        estimators=["kbjae", "ibjae", "lbhjae-adaptive"],
+        repeats=1,
+    )
+    scenario = grid.scenario
+    scenario["motion"]["periods"] = 0.5
+    grid.scenario = scenario
+    (run,) = kflex.run_experiment(grid, models=tmp_path, jobs=1)["runs"]
+    n = len(run["time_s"])
+    floats = {
+        "theta_hat_sigma_deg", "theta_hat_rate_deg_per_s", "kbjae_deg", "ibjae_deg", "ibjae_sigma_deg",
+        "ibjae_silhouette_iou", "ibjae_consistent_lo_deg", "ibjae_consistent_hi_deg", "ibjae_nis",
+    }
+    flags = {"ibjae_occluded", "kbjae_used", "ibjae_used", "ibjae_gated"}
+    assert set(run["details"]) == {"kbjae", "ibjae", "lbhjae-adaptive"}
+    for d in run["details"].values():
+        assert set(d) == floats | flags
+        assert all(d[k].dtype == np.float64 and d[k].shape == (n,) for k in floats)
+        assert all(d[k].dtype == np.bool_ and d[k].shape == (n,) for k in flags)
+
+    fused = run["details"]["lbhjae-adaptive"]
+    assert np.all(np.isfinite(fused["kbjae_deg"])) and fused["kbjae_used"].all()
+    assert np.all(fused["theta_hat_sigma_deg"] > 0.0)
+    read = np.isfinite(fused["ibjae_deg"])
+    # a 30 Hz camera over 100 Hz ticks
+    assert 0.2 < read.mean() <= 0.34, read.mean()
+    assert np.array_equal(np.isfinite(fused["ibjae_sigma_deg"]), read)
+    assert not (fused["ibjae_used"] | fused["ibjae_gated"])[~read].any()
+    assert np.array_equal(np.isfinite(fused["ibjae_nis"]), fused["ibjae_gated"])
+    assert not fused["ibjae_occluded"].any()
+
+    alone = run["details"]["ibjae"]
+    seen = np.isfinite(alone["ibjae_deg"])
+    assert seen.sum() > 20
+    np.testing.assert_array_equal(alone["ibjae_deg"][seen], run["estimates"]["ibjae"][seen])
+    assert np.isnan(alone["kbjae_deg"]).all()
+
+    kbjae = run["details"]["kbjae"]
+    assert all(np.isnan(kbjae[k]).all() for k in floats)
+    assert not any(kbjae[k].any() for k in flags)

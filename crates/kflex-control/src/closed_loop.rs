@@ -162,6 +162,92 @@ pub trait AngleEstimator {
 
     /// Back to the state before the first tick.
     fn reset(&mut self);
+
+    /// What went into the last tick's estimate, as far as the estimator
+    /// tells (the readings it fused, its uncertainty, what it did with each
+    /// reading), for logs and for studying the estimator offline; every
+    /// field `None` by default.
+    fn details(&self) -> TickDetails {
+        TickDetails::default()
+    }
+}
+
+/// What a fusion step did with a reading (`kflex_estimate::SensorUse`;
+/// a gated reading's normalised innovation is in [`TickDetails`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ReadingUse {
+    /// It updated the estimate.
+    Used,
+    /// There was none this tick.
+    Missing,
+    /// The filter did not step this tick (the paper's filter "as written").
+    Held,
+    /// The filter rejected it (the chi-square gate, or a reading that
+    /// reports itself too uncertain or with a hidden part).
+    Gated,
+    /// A use this version does not name.
+    Other,
+}
+
+impl ReadingUse {
+    /// The use and, for a gated reading, its `ν²/S`.
+    #[must_use]
+    pub fn of(u: kflex_estimate::SensorUse) -> (Self, Option<f64>) {
+        use kflex_estimate::SensorUse;
+        match u {
+            SensorUse::Used => (Self::Used, None),
+            SensorUse::Missing => (Self::Missing, None),
+            SensorUse::Held => (Self::Held, None),
+            SensorUse::Gated { nis } => (Self::Gated, Some(nis)),
+            _ => (Self::Other, None),
+        }
+    }
+}
+
+/// What went into one tick's estimate ([`AngleEstimator::details`]): each
+/// field `None` where the estimator has no such thing this tick. LBHJAE
+/// fills them all (the IBJAE fields on ticks that read a frame), IBJAE
+/// alone its reading's, KBJAE none (its reading is its estimate). Angles
+/// in deg.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default)]
+pub struct TickDetails {
+    /// The estimate's standard deviation, √P_θθ of the fusion filter.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub theta_hat_sigma_deg: Option<f64>,
+    /// The fusion's estimate of the rate, deg/s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub theta_hat_rate_deg_per_s: Option<f64>,
+    /// KBJAE's angle.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub kbjae_deg: Option<f64>,
+    /// What the fusion did with it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub kbjae_use: Option<ReadingUse>,
+    /// IBJAE's angle, where it read a frame this tick.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ibjae_deg: Option<f64>,
+    /// The uncertainty IBJAE gives its reading.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ibjae_sigma_deg: Option<f64>,
+    /// The IoU of the segmented silhouette with the nominal one of the pose
+    /// read (IBJAE's silhouette check).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ibjae_silhouette_iou: Option<f64>,
+    /// Whether IBJAE took part of the instrument as hidden (tape).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ibjae_occluded: Option<bool>,
+    /// With a hidden part, the lowest and highest bends consistent with the
+    /// visible pixels.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ibjae_consistent_deg: Option<[f64; 2]>,
+    /// What the fusion did with IBJAE's reading.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ibjae_use: Option<ReadingUse>,
+    /// A gated reading's normalised innovation squared `ν²/S`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ibjae_nis: Option<f64>,
 }
 
 /// A stand-in for a camera-based estimator: the plant's true angle at each
@@ -174,6 +260,8 @@ pub struct NoisyTruth {
     rng: ChaCha8Rng,
     seed: u64,
     last: Option<f64>,
+    /// Whether the last tick had a frame.
+    read: bool,
 }
 
 impl NoisyTruth {
@@ -188,6 +276,7 @@ impl NoisyTruth {
             rng: ChaCha8Rng::seed_from_u64(seed),
             seed,
             last: None,
+            read: false,
         })
     }
 }
@@ -198,6 +287,7 @@ impl AngleEstimator for NoisyTruth {
     }
 
     fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>> {
+        self.read = tick.frame.is_some();
         if let Some(frame) = tick.frame {
             self.last = Some(
                 frame.truth_theta_a_deg
@@ -210,6 +300,18 @@ impl AngleEstimator for NoisyTruth {
     fn reset(&mut self) {
         self.rng = ChaCha8Rng::seed_from_u64(self.seed);
         self.last = None;
+        self.read = false;
+    }
+
+    /// A stand-in camera: on a tick with a frame, its reading (the
+    /// estimate) and its noise as IBJAE's fields.
+    fn details(&self) -> TickDetails {
+        let reading = self.last.filter(|_| self.read);
+        TickDetails {
+            ibjae_deg: reading,
+            ibjae_sigma_deg: reading.map(|_| self.sigma_deg),
+            ..TickDetails::default()
+        }
     }
 }
 
@@ -278,6 +380,9 @@ pub struct ClosedLoopTrace {
     /// The estimate θ̂ after each tick, deg; `None` before the estimator
     /// had one.
     pub theta_hat_deg: Vec<Option<f64>>,
+    /// What went into each tick's estimate ([`AngleEstimator::details`]).
+    #[serde(default)]
+    pub details: Vec<TickDetails>,
     /// Ticks in which the compensator held its command for a fault.
     pub fault_ticks: usize,
     /// The camera's frames.
@@ -577,6 +682,7 @@ impl ClosedLoopScenario {
                 t.theta_a_measured_deg.push(state.theta_a_measured_deg);
                 out.theta_c_deg.push(theta_c);
                 out.theta_hat_deg.push(theta_hat);
+                out.details.push(estimator.details());
             }
         }
         out.frames = camera.counts;

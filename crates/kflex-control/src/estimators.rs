@@ -11,10 +11,12 @@
 //! KBJAE reads θ_c with the master's rate θ_d': the crate docs say why
 //! ("KBJAE's input in the closed loop").
 
-use kflex_estimate::{Ibjae, Kbjae, Lbhjae, RgbView};
+use kflex_estimate::{Ibjae, IbjaeReading, Kbjae, Lbhjae, LbhjaeEstimate, RgbView};
 use kflex_model::{Command, Roi};
 
-use crate::closed_loop::{AngleEstimator, CameraFrame, EstimatorTick, FrameRequest};
+use crate::closed_loop::{
+    AngleEstimator, CameraFrame, EstimatorTick, FrameRequest, ReadingUse, TickDetails,
+};
 use crate::error::Result;
 
 /// The pixels of a frame as IBJAE reads them (camera coordinates), where
@@ -32,6 +34,33 @@ fn view<'a>(frame: &CameraFrame<'a>) -> Result<Option<RgbView<'a>>> {
 
 fn request(window: Option<Roi>) -> FrameRequest {
     window.map_or(FrameRequest::None, FrameRequest::Pixels)
+}
+
+/// IBJAE's reading as [`TickDetails`] has it (the fusion's fields `None`).
+fn reading_details(r: Option<&IbjaeReading>) -> TickDetails {
+    TickDetails {
+        ibjae_deg: r.map(|r| r.theta_deg),
+        ibjae_sigma_deg: r.map(|r| r.sigma_deg),
+        ibjae_silhouette_iou: r.and_then(|r| r.silhouette_iou),
+        ibjae_occluded: r.map(|r| r.occluded),
+        ibjae_consistent_deg: r.and_then(|r| r.consistent_deg),
+        ..TickDetails::default()
+    }
+}
+
+/// An LBHJAE tick as [`TickDetails`] has it.
+fn lbhjae_details(e: &LbhjaeEstimate) -> TickDetails {
+    let (kbjae_use, _) = ReadingUse::of(e.fused.kbjae);
+    let (ibjae_use, ibjae_nis) = ReadingUse::of(e.fused.ibjae);
+    TickDetails {
+        theta_hat_sigma_deg: Some(e.fused.covariance[0][0].max(0.0).sqrt()),
+        theta_hat_rate_deg_per_s: Some(e.fused.theta_hat_rate_deg_per_s),
+        kbjae_deg: Some(e.kbjae_deg),
+        kbjae_use: Some(kbjae_use),
+        ibjae_use: Some(ibjae_use),
+        ibjae_nis,
+        ..reading_details(e.ibjae.as_ref())
+    }
 }
 
 /// KBJAE alone: θ̂ = θ_c + the predicted hysteresis error θ̃(θ_c, θ_d'),
@@ -61,13 +90,19 @@ impl AngleEstimator for Kbjae {
 pub struct IbjaeAlone {
     ibjae: Ibjae,
     last: Option<f64>,
+    /// This tick's reading, where it read a frame.
+    read: Option<IbjaeReading>,
 }
 
 impl IbjaeAlone {
     /// IBJAE with no reading yet.
     #[must_use]
     pub fn new(ibjae: Ibjae) -> Self {
-        Self { ibjae, last: None }
+        Self {
+            ibjae,
+            last: None,
+            read: None,
+        }
     }
 
     /// The bands to read at `translation_mm`, given the last reading.
@@ -82,6 +117,7 @@ impl AngleEstimator for IbjaeAlone {
     }
 
     fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>> {
+        self.read = None;
         let Some(frame) = &tick.frame else {
             return Ok(self.last);
         };
@@ -92,12 +128,18 @@ impl AngleEstimator for IbjaeAlone {
         bands.retain(|&b| window.holds(&self.ibjae.bands()[b].band.roi));
         if let Some(reading) = self.ibjae.read(&view, &bands)? {
             self.last = Some(reading.theta_deg);
+            self.read = Some(reading);
         }
         Ok(self.last)
     }
 
     fn reset(&mut self) {
         self.last = None;
+        self.read = None;
+    }
+
+    fn details(&self) -> TickDetails {
+        reading_details(self.read.as_ref())
     }
 }
 
@@ -134,5 +176,9 @@ impl AngleEstimator for Lbhjae {
 
     fn reset(&mut self) {
         Lbhjae::reset(self);
+    }
+
+    fn details(&self) -> TickDetails {
+        self.last_estimate().map(lbhjae_details).unwrap_or_default()
     }
 }

@@ -16,7 +16,7 @@ use kflex_model::{AuroraNoise, Background, Bounds, Occlusion, Plant, PlantConfig
 use serde::{Deserialize, Serialize};
 
 use crate::closed_loop::{
-    AngleEstimator, ClosedLoopScenario, ClosedLoopTrace, estimation_rmse_deg,
+    AngleEstimator, ClosedLoopScenario, ClosedLoopTrace, TickDetails, estimation_rmse_deg,
 };
 use crate::error::{ControlError, Result};
 use crate::experiment::RunMetrics;
@@ -414,6 +414,11 @@ impl ExperimentGrid {
                 .iter()
                 .map(|h| &h[h.len().saturating_sub(evaluated)..])
                 .collect();
+            let details: Vec<&[TickDetails]> = all
+                .details
+                .iter()
+                .map(|d| &d[d.len().saturating_sub(evaluated)..])
+                .collect();
             on_run(&GridRun {
                 case,
                 seed,
@@ -421,6 +426,7 @@ impl ExperimentGrid {
                 scenario: &scenario,
                 estimators,
                 estimates: &estimates,
+                details: &details,
                 trace: &trace,
             })?;
             match case.kind {
@@ -617,6 +623,9 @@ pub struct GridRun<'a> {
     /// Each estimator's estimate after every evaluated tick, deg (`None`
     /// before it had one), aligned with `trace`.
     pub estimates: &'a [&'a [Option<f64>]],
+    /// What went into each estimator's estimate after every evaluated tick
+    /// ([`AngleEstimator::details`]), aligned with `estimates`.
+    pub details: &'a [&'a [TickDetails]],
     /// The run; its `theta_hat_deg` is the first estimator's.
     pub trace: &'a ClosedLoopTrace,
 }
@@ -640,8 +649,14 @@ impl GridRun<'_> {
                 self.seed
             ));
             let estimate = self.estimates.get(i).copied().unwrap_or(&[]);
-            self.trace
-                .write_mcap_with_estimate(&path, self.scenario, self.seed, estimate)?;
+            let details = self.details.get(i).copied().unwrap_or(&[]);
+            self.trace.write_mcap_with_estimate(
+                &path,
+                self.scenario,
+                self.seed,
+                estimate,
+                details,
+            )?;
             written.push(path);
         }
         Ok(written)
@@ -656,12 +671,19 @@ struct Fanout {
     members: Vec<Box<dyn AngleEstimator>>,
     /// Each member's estimate after every tick, pre-roll included.
     hats: Vec<Vec<Option<f64>>>,
+    /// Each member's details after every tick, pre-roll included.
+    details: Vec<Vec<TickDetails>>,
 }
 
 impl Fanout {
     fn new(members: Vec<Box<dyn AngleEstimator>>) -> Self {
         let hats = vec![Vec::new(); members.len()];
-        Self { members, hats }
+        let details = vec![Vec::new(); members.len()];
+        Self {
+            members,
+            hats,
+            details,
+        }
     }
 }
 
@@ -680,17 +702,36 @@ impl AngleEstimator for Fanout {
     }
 
     fn step(&mut self, tick: &crate::EstimatorTick<'_>) -> Result<Option<f64>> {
-        for (m, hats) in self.members.iter_mut().zip(&mut self.hats) {
+        for ((m, hats), details) in self
+            .members
+            .iter_mut()
+            .zip(&mut self.hats)
+            .zip(&mut self.details)
+        {
             hats.push(m.step(tick)?);
+            details.push(m.details());
         }
         Ok(self.hats.first().and_then(|h| h.last().copied().flatten()))
     }
 
     fn reset(&mut self) {
-        for (m, hats) in self.members.iter_mut().zip(&mut self.hats) {
+        for ((m, hats), details) in self
+            .members
+            .iter_mut()
+            .zip(&mut self.hats)
+            .zip(&mut self.details)
+        {
             m.reset();
             hats.clear();
+            details.clear();
         }
+    }
+
+    fn details(&self) -> TickDetails {
+        self.details
+            .first()
+            .and_then(|d| d.last().copied())
+            .unwrap_or_default()
     }
 }
 

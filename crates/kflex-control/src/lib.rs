@@ -87,7 +87,8 @@ mod results;
 
 pub use closed_loop::{
     AngleEstimator, CameraFrame, CameraTiming, ClosedLoopScenario, ClosedLoopTrace, EstimatorTick,
-    FrameCounts, FrameRequest, NoisyTruth, RecordedFrame, ReplayTick, estimation_rmse_deg,
+    FrameCounts, FrameRequest, NoisyTruth, ReadingUse, RecordedFrame, ReplayTick, TickDetails,
+    estimation_rmse_deg,
 };
 pub use compensator::{
     BacklashTerm, Compensator, CompensatorConfig, CompensatorOutput, Fault, Terms,

@@ -5,7 +5,12 @@
 //! logged at its time since the start of evaluation:
 //! * [`JOINT_STATES_TOPIC`] ([`JOINT_STATE_SCHEMA`]): one message per
 //!   evaluated tick with θ_d, its rate, θ_c, the true and the measured θ_a
-//!   and the estimate θ̂ (`null` before the estimator had one);
+//!   and the estimate θ̂ (`null` before the estimator had one); and, where
+//!   the estimator tells them ([`TickDetails`]), θ̂'s standard deviation
+//!   and rate, the readings it fused (KBJAE's angle; IBJAE's angle,
+//!   uncertainty, silhouette IoU, hidden part and consistent bends on the
+//!   ticks that read a frame) and what it did with each (`used`, `gated`
+//!   with `ν²/S`, `missing`, `held`): fields left out where there is none;
 //! * where the run recorded its frames ([`ClosedLoopScenario::record_frames`]),
 //!   per frame rendered, at its capture: [`IMAGE_TOPIC`], the window's
 //!   pixels as a `foxglove.RawImage` (`rgb8`, the bytes in base64, as
@@ -28,7 +33,9 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::closed_loop::{ClosedLoopScenario, ClosedLoopTrace, RecordedFrame, ReplayTick};
+use crate::closed_loop::{
+    ClosedLoopScenario, ClosedLoopTrace, RecordedFrame, ReplayTick, TickDetails,
+};
 use crate::error::{ControlError, Result};
 use kflex_model::{Command, Roi};
 
@@ -50,7 +57,18 @@ pub const JOINT_STATE_SCHEMA: &str = r#"{
     "theta_c_deg": {"type": "number", "description": "command sent to the plant"},
     "theta_a_deg": {"type": "number", "description": "true joint angle"},
     "theta_a_measured_deg": {"type": "number", "description": "joint angle as the tracker measured it"},
-    "theta_hat_deg": {"type": ["number", "null"], "description": "the estimate; null before the estimator had one"}
+    "theta_hat_deg": {"type": ["number", "null"], "description": "the estimate; null before the estimator had one"},
+    "theta_hat_sigma_deg": {"type": "number", "description": "the estimate's standard deviation (a fusion filter's)"},
+    "theta_hat_rate_deg_per_s": {"type": "number", "description": "the fusion's estimate of the rate, deg/s"},
+    "kbjae_deg": {"type": "number", "description": "KBJAE's reading"},
+    "kbjae_use": {"type": "string", "enum": ["used", "missing", "held", "gated", "other"], "description": "what the fusion did with KBJAE's reading"},
+    "ibjae_deg": {"type": "number", "description": "IBJAE's reading of a frame read this tick"},
+    "ibjae_sigma_deg": {"type": "number", "description": "the uncertainty IBJAE gives it"},
+    "ibjae_silhouette_iou": {"type": "number", "description": "IoU of the segmented silhouette with the nominal one of the pose read"},
+    "ibjae_occluded": {"type": "boolean", "description": "whether IBJAE took part of the instrument as hidden"},
+    "ibjae_consistent_deg": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2, "description": "with a hidden part: the lowest and highest bends consistent with the visible pixels"},
+    "ibjae_use": {"type": "string", "enum": ["used", "missing", "held", "gated", "other"], "description": "what the fusion did with IBJAE's reading"},
+    "ibjae_nis": {"type": "number", "description": "a gated reading's normalised innovation squared"}
   },
   "required": ["time_s", "theta_d_deg", "theta_d_rate_deg_per_s", "theta_c_deg", "theta_a_deg", "theta_a_measured_deg", "theta_hat_deg"]
 }"#;
@@ -228,6 +246,10 @@ pub struct JointState {
     pub theta_a_measured_deg: f64,
     /// θ̂, deg; `None` before the estimator had one.
     pub theta_hat_deg: Option<f64>,
+    /// What went into θ̂, where the estimator tells (each field left out
+    /// of the message where `None`).
+    #[serde(flatten)]
+    pub details: TickDetails,
 }
 
 fn log_error(path: &Path, e: impl std::fmt::Display) -> ControlError {
@@ -240,14 +262,15 @@ fn log_error(path: &Path, e: impl std::fmt::Display) -> ControlError {
 impl ClosedLoopTrace {
     /// The joint states of every evaluated tick, in order.
     pub fn joint_states(&self) -> impl Iterator<Item = JointState> + '_ {
-        self.joint_states_with(&self.theta_hat_deg)
+        self.joint_states_with(&self.theta_hat_deg, &self.details)
     }
 
     /// [`ClosedLoopTrace::joint_states`] with `estimate` (aligned with the
-    /// ticks) as θ̂.
+    /// ticks) as θ̂ and `details` as what went into it.
     fn joint_states_with<'a>(
         &'a self,
         estimate: &'a [Option<f64>],
+        details: &'a [TickDetails],
     ) -> impl Iterator<Item = JointState> + 'a {
         let t = &self.trace;
         (0..t.time_s.len()).map(move |k| JointState {
@@ -258,6 +281,7 @@ impl ClosedLoopTrace {
             theta_a_deg: t.theta_a_deg[k],
             theta_a_measured_deg: t.theta_a_measured_deg[k],
             theta_hat_deg: estimate.get(k).copied().flatten(),
+            details: details.get(k).copied().unwrap_or_default(),
         })
     }
 
@@ -269,12 +293,12 @@ impl ClosedLoopTrace {
     /// written (nothing is left at `path` then), or a time that does not fit
     /// the log's nanoseconds.
     pub fn write_mcap(&self, path: &Path, scenario: &ClosedLoopScenario, seed: u64) -> Result<()> {
-        self.write_mcap_with_estimate(path, scenario, seed, &self.theta_hat_deg)
+        self.write_mcap_with_estimate(path, scenario, seed, &self.theta_hat_deg, &self.details)
     }
 
-    /// [`ClosedLoopTrace::write_mcap`] with `estimate` as θ̂ (another
-    /// estimator's on the same run, aligned with the ticks), without copying
-    /// the trace and its frames.
+    /// [`ClosedLoopTrace::write_mcap`] with `estimate` as θ̂ and `details`
+    /// as what went into it (another estimator's on the same run, aligned
+    /// with the ticks), without copying the trace and its frames.
     ///
     /// # Errors
     /// As [`ClosedLoopTrace::write_mcap`].
@@ -284,9 +308,10 @@ impl ClosedLoopTrace {
         scenario: &ClosedLoopScenario,
         seed: u64,
         estimate: &[Option<f64>],
+        details: &[TickDetails],
     ) -> Result<()> {
         let tmp = path.with_extension("mcap.tmp");
-        let written = self.write_mcap_to(&tmp, scenario, seed, estimate);
+        let written = self.write_mcap_to(&tmp, scenario, seed, estimate, details);
         match written.and_then(|()| std::fs::rename(&tmp, path).map_err(|e| log_error(path, e))) {
             Ok(()) => Ok(()),
             Err(e) => {
@@ -302,6 +327,7 @@ impl ClosedLoopTrace {
         scenario: &ClosedLoopScenario,
         seed: u64,
         estimate: &[Option<f64>],
+        details: &[TickDetails],
     ) -> Result<()> {
         let err = |e: &dyn std::fmt::Display| log_error(path, e);
         let file = std::fs::File::create(path).map_err(|e| err(&e))?;
@@ -372,7 +398,7 @@ impl ClosedLoopTrace {
                 .map_err(|e| err(&e))?;
         let mut data = Vec::new();
         let mut next_frame = 0;
-        for (k, state) in self.joint_states_with(estimate).enumerate() {
+        for (k, state) in self.joint_states_with(estimate, details).enumerate() {
             let ns = nanos(state.time_s)?;
             // the frames captured by now, in time order with the ticks
             while let (Some(f), Some(channels)) = (self.camera_frames.get(next_frame), frames)

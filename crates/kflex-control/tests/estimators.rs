@@ -5,7 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use kflex_control::{
-    AngleEstimator, ClosedLoopScenario, IbjaeAlone, OpenLoopScenario, Result as ControlResult,
+    AngleEstimator, ClosedLoopScenario, IbjaeAlone, OpenLoopScenario, ReadingUse,
+    Result as ControlResult, TickDetails,
 };
 use kflex_estimate::{
     AdaptiveKalman, AdaptiveParams, Fusion, Ibjae, Kbjae, Lbhjae, Scnn, SegmentParams,
@@ -188,4 +189,95 @@ fn a_backlash_like_kbjae_on_the_masters_rate_compensates_without_chatter() {
     // model picks: θ_c oscillates along the branches, and the joint with it
     assert!(own_chatter > 50, "{own_chatter}");
     assert!(own > master, "{own} against {master}");
+}
+
+/// Each tick tells what went into its estimate: LBHJAE its fused
+/// uncertainty and rate, KBJAE's reading and, on the ticks that read a
+/// frame, IBJAE's, with what the filter did with each; IBJAE alone its
+/// reading on those ticks; KBJAE nothing beyond its estimate.
+#[test]
+fn each_tick_tells_what_went_into_its_estimate() {
+    let kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    let fusion: Box<dyn Fusion + Send> =
+        Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap());
+    let mut lbhjae = Lbhjae::new(kbjae, ibjae(), fusion);
+    let out = run(&mut lbhjae).unwrap();
+    let n = out.theta_hat_deg.len();
+    assert_eq!(out.details.len(), n);
+    let mut read = 0;
+    for d in &out.details {
+        assert!(d.kbjae_deg.is_some_and(f64::is_finite), "{d:?}");
+        assert_eq!(d.kbjae_use, Some(ReadingUse::Used));
+        assert!(
+            d.theta_hat_sigma_deg.is_some_and(|s| s > 0.0 && s < 10.0),
+            "{d:?}"
+        );
+        assert!(d.theta_hat_rate_deg_per_s.is_some_and(f64::is_finite));
+        match d.ibjae_deg {
+            Some(theta) => {
+                read += 1;
+                assert!(theta.is_finite());
+                assert!(d.ibjae_sigma_deg.is_some_and(|s| s > 0.0));
+                assert_eq!(d.ibjae_occluded, Some(false));
+                let used = matches!(d.ibjae_use, Some(ReadingUse::Used | ReadingUse::Gated));
+                assert!(used, "{d:?}");
+                assert_eq!(
+                    d.ibjae_nis.is_some(),
+                    d.ibjae_use == Some(ReadingUse::Gated)
+                );
+            }
+            None => {
+                assert_eq!(d.ibjae_use, Some(ReadingUse::Missing), "{d:?}");
+                assert_eq!(d.ibjae_sigma_deg, None);
+            }
+        }
+    }
+    assert!(read > 50 && read <= out.frames.delivered, "{read}");
+    // the last tick's, as the estimator keeps it
+    let last = lbhjae.last_estimate().unwrap();
+    assert_eq!(out.details[n - 1].kbjae_deg, Some(last.kbjae_deg));
+    assert_eq!(out.theta_hat_deg[n - 1], Some(last.fused.theta_hat_deg));
+    lbhjae.reset();
+    assert!(lbhjae.last_estimate().is_none());
+
+    // IBJAE alone: its reading on the ticks that read a frame, which is its estimate
+    let mut alone = IbjaeAlone::new(ibjae());
+    let out = run(&mut alone).unwrap();
+    let read: Vec<usize> = (0..out.details.len())
+        .filter(|&k| out.details[k].ibjae_deg.is_some())
+        .collect();
+    assert!(read.len() > 50, "{}", read.len());
+    for &k in &read {
+        assert_eq!(out.details[k].ibjae_deg, out.theta_hat_deg[k]);
+        assert_eq!(out.details[k].kbjae_deg, None);
+    }
+    // between frames the estimate is held, and nothing was read
+    assert!(read.len() < out.details.len() / 2);
+
+    // KBJAE: its reading is its estimate, nothing more to tell
+    let mut kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    let out = run(&mut kbjae).unwrap();
+    assert!(out.details.iter().all(|d| *d == TickDetails::default()));
+}
+
+/// What went into each estimate goes into the run's MCAP log and comes back
+/// as written.
+#[cfg(feature = "mcap")]
+#[test]
+fn the_details_go_into_the_log() {
+    let kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    let fusion: Box<dyn Fusion + Send> =
+        Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap());
+    let mut lbhjae = Lbhjae::new(kbjae, ibjae(), fusion);
+    let scenario = scenario();
+    let out = scenario.run(&mut plant(), &mut lbhjae, 4).unwrap();
+    let dir = std::env::temp_dir().join(format!("kflex-details-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("run.mcap");
+    out.write_mcap(&path, &scenario, 4).unwrap();
+    let log = kflex_control::read_mcap(&path).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let back: Vec<TickDetails> = log.states.iter().map(|s| s.details).collect();
+    assert_eq!(back, out.details);
+    assert!(back.iter().any(|d| d.ibjae_deg.is_some()));
 }

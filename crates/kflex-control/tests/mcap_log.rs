@@ -382,6 +382,7 @@ fn a_log_from_elsewhere_is_read_on_its_joint_states_clock() {
                 theta_a_deg: 9.0,
                 theta_a_measured_deg: 9.0,
                 theta_hat_deg: None,
+                details: kflex_control::TickDetails::default(),
             };
             out.write_to_known_channel(
                 &header(states, epoch + k * 10_000_000),

@@ -34,6 +34,8 @@ pub struct Lbhjae {
     started: bool,
     /// The bands of the frame being read (kept: a tick allocates nothing).
     bands: Vec<usize>,
+    /// The last tick's estimate and readings.
+    last: Option<LbhjaeEstimate>,
 }
 
 impl std::fmt::Debug for Lbhjae {
@@ -56,7 +58,16 @@ impl Lbhjae {
             fusion,
             started: false,
             bands: Vec::new(),
+            last: None,
         }
+    }
+
+    /// The last tick's estimate and what each estimator read in it (as
+    /// [`Lbhjae::step`] returned it); `None` before the first tick and
+    /// after [`Lbhjae::reset`].
+    #[must_use]
+    pub fn last_estimate(&self) -> Option<&LbhjaeEstimate> {
+        self.last.as_ref()
     }
 
     /// The last fused bend, once there is one: IBJAE's hint for choosing
@@ -145,11 +156,13 @@ impl Lbhjae {
             },
         )?;
         self.started = true;
-        Ok(LbhjaeEstimate {
+        let estimate = LbhjaeEstimate {
             fused,
             kbjae_deg,
             ibjae,
-        })
+        };
+        self.last = Some(estimate);
+        Ok(estimate)
     }
 
     /// Back to the start: no command history, the filter at its initial state.
@@ -157,5 +170,6 @@ impl Lbhjae {
         self.kbjae.reset();
         self.fusion.reset();
         self.started = false;
+        self.last = None;
     }
 }

@@ -4,8 +4,12 @@
 
 use std::path::PathBuf;
 
-use kflex_control::{AngleEstimator, ClosedLoopScenario, ClosedLoopTrace, NoisyTruth, RunMetrics};
+use kflex_control::{
+    AngleEstimator, ClosedLoopScenario, ClosedLoopTrace, NoisyTruth, ReadingUse, RunMetrics,
+    TickDetails,
+};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 use crate::array;
 use crate::error::{Error, Result};
@@ -142,6 +146,14 @@ impl PyClosedLoopTrace {
         array::column(py, hat)
     }
 
+    /// What went into each tick's estimate, as the estimator tells it
+    /// (kflex-control's `TickDetails`, as `run_experiment`'s `details`): a
+    /// `dict` of float64 arrays (NaN where a tick has none) and bool arrays.
+    #[getter]
+    fn details<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        details_dict(py, &self.inner.details)
+    }
+
     /// Ticks in which the compensator held its command for a fault.
     #[getter]
     fn fault_ticks(&self) -> usize {
@@ -171,4 +183,46 @@ impl PyClosedLoopTrace {
     fn __len__(&self) -> usize {
         self.inner.trace.time_s.len()
     }
+}
+
+/// One estimator's [`TickDetails`] over a run as arrays: float64 with NaN
+/// where a tick has none, bool (false where none).
+pub(crate) fn details_dict<'py>(
+    py: Python<'py>,
+    ticks: &[TickDetails],
+) -> PyResult<Bound<'py, PyDict>> {
+    use numpy::IntoPyArray;
+    let d = PyDict::new(py);
+    type Float = fn(&TickDetails) -> Option<f64>;
+    type Flag = fn(&TickDetails) -> bool;
+    let floats: [(&str, Float); 9] = [
+        ("theta_hat_sigma_deg", |t| t.theta_hat_sigma_deg),
+        ("theta_hat_rate_deg_per_s", |t| t.theta_hat_rate_deg_per_s),
+        ("kbjae_deg", |t| t.kbjae_deg),
+        ("ibjae_deg", |t| t.ibjae_deg),
+        ("ibjae_sigma_deg", |t| t.ibjae_sigma_deg),
+        ("ibjae_silhouette_iou", |t| t.ibjae_silhouette_iou),
+        ("ibjae_consistent_lo_deg", |t| {
+            t.ibjae_consistent_deg.map(|c| c[0])
+        }),
+        ("ibjae_consistent_hi_deg", |t| {
+            t.ibjae_consistent_deg.map(|c| c[1])
+        }),
+        ("ibjae_nis", |t| t.ibjae_nis),
+    ];
+    for (name, f) in floats {
+        let column = ticks.iter().map(|t| f(t).unwrap_or(f64::NAN)).collect();
+        d.set_item(name, array::column(py, column))?;
+    }
+    let flags: [(&str, Flag); 4] = [
+        ("ibjae_occluded", |t| t.ibjae_occluded == Some(true)),
+        ("kbjae_used", |t| t.kbjae_use == Some(ReadingUse::Used)),
+        ("ibjae_used", |t| t.ibjae_use == Some(ReadingUse::Used)),
+        ("ibjae_gated", |t| t.ibjae_use == Some(ReadingUse::Gated)),
+    ];
+    for (name, f) in flags {
+        let column: Vec<bool> = ticks.iter().map(f).collect();
+        d.set_item(name, column.into_pyarray(py))?;
+    }
+    Ok(d)
 }

@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use kflex_control::{
     CaseKind, ControlError, EstimatorKind, ExperimentGrid, GridRun, ModelDir, Record, ResultRow,
+    TickDetails,
 };
 use kflex_model::Camera;
 use pyo3::prelude::*;
@@ -77,6 +78,7 @@ struct RunSeries {
     theta_a_deg: Vec<f64>,
     theta_a_measured_deg: Vec<f64>,
     estimates: Vec<Vec<f64>>,
+    details: Vec<Vec<TickDetails>>,
 }
 
 impl RunSeries {
@@ -100,6 +102,7 @@ impl RunSeries {
                 .iter()
                 .map(|e| e.iter().map(|h| h.unwrap_or(f64::NAN)).collect())
                 .collect(),
+            details: run.details.iter().map(|d| d.to_vec()).collect(),
         }
     }
 }
@@ -136,12 +139,15 @@ fn run_dict(py: Python<'_>, run: RunSeries) -> PyResult<Bound<'_, PyDict>> {
         array::column(py, run.theta_a_measured_deg),
     )?;
     let estimates = PyDict::new(py);
-    for (e, series) in run.estimators.iter().zip(run.estimates) {
+    let details = PyDict::new(py);
+    for ((e, series), ticks) in run.estimators.iter().zip(run.estimates).zip(&run.details) {
         if *e != EstimatorKind::None {
             estimates.set_item(e.name(), array::column(py, series))?;
+            details.set_item(e.name(), crate::closed_loop::details_dict(py, ticks)?)?;
         }
     }
     d.set_item("estimates", estimates)?;
+    d.set_item("details", details)?;
     Ok(d)
 }
 
@@ -163,8 +169,15 @@ fn run_dict(py: Python<'_>, run: RunSeries) -> PyResult<Bound<'_, PyDict>> {
 /// `time_series`, `runs`, one `dict` per run (`kind`, `table`,
 /// `sheath_deg`, `occlusion`, `seed`, `background`, `estimators`, and
 /// float64 arrays `time_s`, `theta_d_deg`, `theta_c_deg`, `theta_a_deg`,
-/// `theta_a_measured_deg`, and `estimates`: estimator name to its
-/// estimate, NaN before it had one), in the order the runs ended. With
+/// `theta_a_measured_deg`, `estimates`: estimator name to its estimate,
+/// NaN before it had one, and `details`: estimator name to what went into
+/// its estimate each tick, as arrays (kflex-control's `TickDetails`:
+/// float64 `theta_hat_sigma_deg`, `theta_hat_rate_deg_per_s`, `kbjae_deg`,
+/// `ibjae_deg`, `ibjae_sigma_deg`, `ibjae_silhouette_iou`,
+/// `ibjae_consistent_lo_deg`, `ibjae_consistent_hi_deg`, `ibjae_nis`, NaN
+/// where a tick has none (IBJAE's on the ticks that read no frame); bool
+/// `ibjae_occluded`, `kbjae_used`, `ibjae_used`, `ibjae_gated`), in the
+/// order the runs ended. With
 /// `mcap_dir`, every run's MCAP log goes there as `kflex-cli run --mcap`
 /// writes them (one per estimator of the run,
 /// `IX_90deg_0pct_none_seed2020.mcap`), and with `mcap_frames` the logs hold
