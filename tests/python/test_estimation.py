@@ -479,32 +479,43 @@ def test_run_experiment_tells_what_went_into_each_estimate(models, paper_db, tmp
     n = len(run["time_s"])
     floats = {
         "theta_hat_sigma_deg", "theta_hat_rate_deg_per_s", "kbjae_deg", "ibjae_deg", "ibjae_sigma_deg",
-        "ibjae_silhouette_iou", "ibjae_consistent_lo_deg", "ibjae_consistent_hi_deg", "ibjae_nis",
+        "ibjae_silhouette_iou", "ibjae_nis",
     }
-    flags = {"ibjae_occluded", "kbjae_used", "ibjae_used", "ibjae_gated"}
+    flags = {"frame_arrived", "ibjae_occluded"}
+    uses = {"kbjae_use", "ibjae_use"}
     assert set(run["details"]) == {"kbjae", "ibjae", "lbhjae-adaptive"}
     for d in run["details"].values():
-        assert set(d) == floats | flags
+        assert set(d) == floats | flags | uses | {"ibjae_consistent_deg"}
         assert all(d[k].dtype == np.float64 and d[k].shape == (n,) for k in floats)
         assert all(d[k].dtype == np.bool_ and d[k].shape == (n,) for k in flags)
+        assert all(d[k].dtype.kind == "U" and d[k].shape == (n,) for k in uses)
+        assert d["ibjae_consistent_deg"].shape == (n, 2)
+        # the loop's own: the same frames reach each estimator of the run
+        np.testing.assert_array_equal(d["frame_arrived"], run["details"]["lbhjae-adaptive"]["frame_arrived"])
 
     fused = run["details"]["lbhjae-adaptive"]
-    assert np.all(np.isfinite(fused["kbjae_deg"])) and fused["kbjae_used"].all()
+    assert np.all(np.isfinite(fused["kbjae_deg"])) and np.all(fused["kbjae_use"] == "used")
     assert np.all(fused["theta_hat_sigma_deg"] > 0.0)
     read = np.isfinite(fused["ibjae_deg"])
-    # a 30 Hz camera over 100 Hz ticks
+    # a 30 Hz camera over 100 Hz ticks; a reading only where a frame arrived
     assert 0.2 < read.mean() <= 0.34, read.mean()
+    assert not read[~fused["frame_arrived"]].any()
     assert np.array_equal(np.isfinite(fused["ibjae_sigma_deg"]), read)
-    assert not (fused["ibjae_used"] | fused["ibjae_gated"])[~read].any()
-    assert np.array_equal(np.isfinite(fused["ibjae_nis"]), fused["ibjae_gated"])
-    assert not fused["ibjae_occluded"].any()
+    assert set(fused["ibjae_use"][read]) <= {"used", "gated"}
+    assert np.all(fused["ibjae_use"][~read] == "missing")
+    assert np.array_equal(np.isfinite(fused["ibjae_nis"]), fused["ibjae_use"] == "gated")
+    assert not fused["ibjae_occluded"].any() and np.isnan(fused["ibjae_consistent_deg"]).all()
 
     alone = run["details"]["ibjae"]
     seen = np.isfinite(alone["ibjae_deg"])
     assert seen.sum() > 20
     np.testing.assert_array_equal(alone["ibjae_deg"][seen], run["estimates"]["ibjae"][seen])
-    assert np.isnan(alone["kbjae_deg"]).all()
+    assert np.isnan(alone["kbjae_deg"]).all() and np.all(alone["ibjae_use"] == "")
 
     kbjae = run["details"]["kbjae"]
     assert all(np.isnan(kbjae[k]).all() for k in floats)
-    assert not any(kbjae[k].any() for k in flags)
+    assert not kbjae["ibjae_occluded"].any() and np.all(kbjae["kbjae_use"] == "")
+    # and without them
+    (bare,) = kflex.run_experiment(grid, models=tmp_path, jobs=1, details=False)["runs"]
+    assert "details" not in bare
+    np.testing.assert_array_equal(bare["estimates"]["ibjae"], run["estimates"]["ibjae"])

@@ -176,6 +176,7 @@ pub trait AngleEstimator {
 /// a gated reading's normalised innovation is in [`TickDetails`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[non_exhaustive]
 pub enum ReadingUse {
     /// It updated the estimate.
     Used,
@@ -186,7 +187,9 @@ pub enum ReadingUse {
     /// The filter rejected it (the chi-square gate, or a reading that
     /// reports itself too uncertain or with a hidden part).
     Gated,
-    /// A use this version does not name.
+    /// A use this version does not name (also what a log from a later
+    /// version reads as where it names one this version does not know).
+    #[serde(other)]
     Other,
 }
 
@@ -207,12 +210,23 @@ impl ReadingUse {
 
 /// What went into one tick's estimate ([`AngleEstimator::details`]): each
 /// field `None` where the estimator has no such thing this tick. LBHJAE
-/// fills them all (the IBJAE fields on ticks that read a frame), IBJAE
-/// alone its reading's, KBJAE none (its reading is its estimate). Angles
-/// in deg.
+/// gives its uncertainty and rate, KBJAE's reading and what the filter did
+/// with each reading every tick, and IBJAE's reading on the ticks that read
+/// a frame (its silhouette IoU with the silhouette check, its consistent
+/// bends where it took a part as hidden, `ν²/S` where the filter gated it);
+/// IBJAE alone its reading; KBJAE nothing (its reading is its estimate).
+/// `frame_arrived` is the loop's, whatever the estimator: whether a frame
+/// reached it this tick (one that arrived but gave no reading had no
+/// instrument in it, or was taken for a window the estimator no longer
+/// reads). Angles in deg.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default)]
+#[non_exhaustive]
 pub struct TickDetails {
+    /// Whether a camera frame reached the estimator this tick (set by the
+    /// loop: [`ClosedLoopScenario::run`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frame_arrived: Option<bool>,
     /// The estimate's standard deviation, √P_θθ of the fusion filter.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub theta_hat_sigma_deg: Option<f64>,
@@ -682,7 +696,10 @@ impl ClosedLoopScenario {
                 t.theta_a_measured_deg.push(state.theta_a_measured_deg);
                 out.theta_c_deg.push(theta_c);
                 out.theta_hat_deg.push(theta_hat);
-                out.details.push(estimator.details());
+                out.details.push(TickDetails {
+                    frame_arrived: Some(frame.is_some()),
+                    ..estimator.details()
+                });
             }
         }
         out.frames = camera.counts;

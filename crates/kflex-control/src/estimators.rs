@@ -53,7 +53,9 @@ fn lbhjae_details(e: &LbhjaeEstimate) -> TickDetails {
     let (kbjae_use, _) = ReadingUse::of(e.fused.kbjae);
     let (ibjae_use, ibjae_nis) = ReadingUse::of(e.fused.ibjae);
     TickDetails {
-        theta_hat_sigma_deg: Some(e.fused.covariance[0][0].max(0.0).sqrt()),
+        theta_hat_sigma_deg: Some(e.fused.covariance[0][0])
+            .filter(|v| v.is_finite() && *v >= 0.0)
+            .map(f64::sqrt),
         theta_hat_rate_deg_per_s: Some(e.fused.theta_hat_rate_deg_per_s),
         kbjae_deg: Some(e.kbjae_deg),
         kbjae_use: Some(kbjae_use),
@@ -179,6 +181,8 @@ impl AngleEstimator for Lbhjae {
     }
 
     fn details(&self) -> TickDetails {
-        self.last_estimate().map(lbhjae_details).unwrap_or_default()
+        self.last_estimate()
+            .map(|e| lbhjae_details(&e))
+            .unwrap_or_default()
     }
 }

@@ -709,7 +709,10 @@ impl AngleEstimator for Fanout {
             .zip(&mut self.details)
         {
             hats.push(m.step(tick)?);
-            details.push(m.details());
+            details.push(TickDetails {
+                frame_arrived: Some(tick.frame.is_some()),
+                ..m.details()
+            });
         }
         Ok(self.hats.first().and_then(|h| h.last().copied().flatten()))
     }

@@ -10,7 +10,8 @@
 //!   and rate, the readings it fused (KBJAE's angle; IBJAE's angle,
 //!   uncertainty, silhouette IoU, hidden part and consistent bends on the
 //!   ticks that read a frame) and what it did with each (`used`, `gated`
-//!   with `ν²/S`, `missing`, `held`): fields left out where there is none;
+//!   with `ν²/S`, `missing`, `held`), and whether a frame reached it that
+//!   tick: fields left out where there is none;
 //! * where the run recorded its frames ([`ClosedLoopScenario::record_frames`]),
 //!   per frame rendered, at its capture: [`IMAGE_TOPIC`], the window's
 //!   pixels as a `foxglove.RawImage` (`rgb8`, the bytes in base64, as
@@ -58,6 +59,7 @@ pub const JOINT_STATE_SCHEMA: &str = r#"{
     "theta_a_deg": {"type": "number", "description": "true joint angle"},
     "theta_a_measured_deg": {"type": "number", "description": "joint angle as the tracker measured it"},
     "theta_hat_deg": {"type": ["number", "null"], "description": "the estimate; null before the estimator had one"},
+    "frame_arrived": {"type": "boolean", "description": "whether a camera frame reached the estimator this tick"},
     "theta_hat_sigma_deg": {"type": "number", "description": "the estimate's standard deviation (a fusion filter's)"},
     "theta_hat_rate_deg_per_s": {"type": "number", "description": "the fusion's estimate of the rate, deg/s"},
     "kbjae_deg": {"type": "number", "description": "KBJAE's reading"},

@@ -235,6 +235,21 @@ fn each_tick_tells_what_went_into_its_estimate() {
     assert!(read > 50 && read <= out.frames.delivered, "{read}");
     // the last tick's, as the estimator keeps it
     let last = lbhjae.last_estimate().unwrap();
+    // a reading only where a frame reached it
+    assert!(
+        out.details
+            .iter()
+            .all(|d| d.frame_arrived == Some(true) || d.ibjae_deg.is_none())
+    );
+    let arrived = out
+        .details
+        .iter()
+        .filter(|d| d.frame_arrived == Some(true))
+        .count();
+    assert!(
+        arrived >= read && arrived <= out.frames.delivered,
+        "{arrived}"
+    );
     assert_eq!(out.details[n - 1].kbjae_deg, Some(last.kbjae_deg));
     assert_eq!(out.theta_hat_deg[n - 1], Some(last.fused.theta_hat_deg));
     lbhjae.reset();
@@ -257,7 +272,12 @@ fn each_tick_tells_what_went_into_its_estimate() {
     // KBJAE: its reading is its estimate, nothing more to tell
     let mut kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
     let out = run(&mut kbjae).unwrap();
-    assert!(out.details.iter().all(|d| *d == TickDetails::default()));
+    assert!(out.details.iter().all(|d| d.frame_arrived == Some(false)));
+    let no_frame = out.details[0];
+    assert_eq!(
+        serde_json::to_value(no_frame).unwrap(),
+        serde_json::json!({"frame_arrived": false})
+    );
 }
 
 /// What went into each estimate goes into the run's MCAP log and comes back

@@ -287,13 +287,13 @@ fn every_run_is_handed_over_with_each_estimators_estimates() {
             // cameras tell their reading on the ticks that had a frame
             assert_eq!(run.details.len(), run.estimators.len());
             assert_eq!(run.details[0], &run.trace.details[..]);
-            for (d, e) in run.details.iter().zip(run.estimates) {
+            for ((d, e), kind) in run.details.iter().zip(run.estimates).zip(run.estimators) {
                 assert_eq!(d.len(), n);
                 let read: Vec<usize> = (0..n).filter(|&k| d[k].ibjae_deg.is_some()).collect();
                 for &k in &read {
                     assert_eq!(d[k].ibjae_deg, e[k]);
                 }
-                if run.estimators[0] != EstimatorKind::None {
+                if *kind != EstimatorKind::None {
                     // a 30 Hz camera over 100 Hz ticks, less what it drops
                     let share = read.len() as f64 / n as f64;
                     assert!(share > 0.2 && share <= 0.34, "{share}");

@@ -75,12 +75,40 @@ fn the_log_holds_every_tick_and_the_scenario() {
     }
     // the first ticks have no estimate yet (null), later ones do
     assert!(got.iter().any(|s| s.theta_hat_deg.is_some()));
-    // the schema is JSON and names every field a message has
+    // the schema is JSON and names every field a message has, and every
+    // message has the fields it requires
     let schema: serde_json::Value = serde_json::from_str(JOINT_STATE_SCHEMA).unwrap();
-    let message = serde_json::to_value(got[0]).unwrap();
-    for key in message.as_object().unwrap().keys() {
-        assert!(schema["properties"].get(key).is_some(), "{key}");
+    for state in &got {
+        let message = serde_json::to_value(state).unwrap();
+        let keys = message.as_object().unwrap();
+        for key in keys.keys() {
+            assert!(schema["properties"].get(key).is_some(), "{key}");
+        }
+        for key in schema["required"].as_array().unwrap() {
+            assert!(keys.contains_key(key.as_str().unwrap()), "{key}");
+        }
     }
+    // a stand-in camera's reading on the ticks a frame reached it
+    assert!(got.iter().any(|s| s.details.ibjae_deg.is_some()));
+    // a log from before the details reads with none, one from a later
+    // version with a use this one does not name reads it as `other`
+    let old: JointState = serde_json::from_value(serde_json::json!({
+        "time_s": 0.01, "theta_d_deg": 1.0, "theta_d_rate_deg_per_s": 0.0, "theta_c_deg": 1.0,
+        "theta_a_deg": 0.5, "theta_a_measured_deg": 0.5, "theta_hat_deg": null
+    }))
+    .unwrap();
+    assert_eq!(old.details, kflex_control::TickDetails::default());
+    let later: JointState = serde_json::from_value(serde_json::json!({
+        "time_s": 0.01, "theta_d_deg": 1.0, "theta_d_rate_deg_per_s": 0.0, "theta_c_deg": 1.0,
+        "theta_a_deg": 0.5, "theta_a_measured_deg": 0.5, "theta_hat_deg": 0.7,
+        "ibjae_use": "discarded", "ibjae_deg": 3.0
+    }))
+    .unwrap();
+    assert_eq!(
+        later.details.ibjae_use,
+        Some(kflex_control::ReadingUse::Other)
+    );
+    assert_eq!(later.details.ibjae_deg, Some(3.0));
     // the scenario and the seed, as metadata
     let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
     assert_eq!(summary.metadata_indexes.len(), 1);

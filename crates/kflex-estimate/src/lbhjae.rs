@@ -66,8 +66,8 @@ impl Lbhjae {
     /// [`Lbhjae::step`] returned it); `None` before the first tick and
     /// after [`Lbhjae::reset`].
     #[must_use]
-    pub fn last_estimate(&self) -> Option<&LbhjaeEstimate> {
-        self.last.as_ref()
+    pub fn last_estimate(&self) -> Option<LbhjaeEstimate> {
+        self.last
     }
 
     /// The last fused bend, once there is one: IBJAE's hint for choosing

@@ -185,44 +185,68 @@ impl PyClosedLoopTrace {
     }
 }
 
-/// One estimator's [`TickDetails`] over a run as arrays: float64 with NaN
-/// where a tick has none, bool (false where none).
+/// One estimator's [`TickDetails`] over a run as arrays, named as the MCAP
+/// joint states name them: float64 with NaN where a tick has none
+/// (`ibjae_consistent_deg` n × 2), bool `frame_arrived` and
+/// `ibjae_occluded` (false where none), and `kbjae_use` / `ibjae_use` as
+/// strings (`"used"`, `"gated"`, `"missing"`, `"held"`, `"other"`; `""`
+/// where none).
 pub(crate) fn details_dict<'py>(
     py: Python<'py>,
     ticks: &[TickDetails],
 ) -> PyResult<Bound<'py, PyDict>> {
     use numpy::IntoPyArray;
+    use numpy::ndarray::Array2;
     let d = PyDict::new(py);
     type Float = fn(&TickDetails) -> Option<f64>;
     type Flag = fn(&TickDetails) -> bool;
-    let floats: [(&str, Float); 9] = [
+    type Use = fn(&TickDetails) -> Option<ReadingUse>;
+    let floats: [(&str, Float); 7] = [
         ("theta_hat_sigma_deg", |t| t.theta_hat_sigma_deg),
         ("theta_hat_rate_deg_per_s", |t| t.theta_hat_rate_deg_per_s),
         ("kbjae_deg", |t| t.kbjae_deg),
         ("ibjae_deg", |t| t.ibjae_deg),
         ("ibjae_sigma_deg", |t| t.ibjae_sigma_deg),
         ("ibjae_silhouette_iou", |t| t.ibjae_silhouette_iou),
-        ("ibjae_consistent_lo_deg", |t| {
-            t.ibjae_consistent_deg.map(|c| c[0])
-        }),
-        ("ibjae_consistent_hi_deg", |t| {
-            t.ibjae_consistent_deg.map(|c| c[1])
-        }),
         ("ibjae_nis", |t| t.ibjae_nis),
     ];
     for (name, f) in floats {
         let column = ticks.iter().map(|t| f(t).unwrap_or(f64::NAN)).collect();
         d.set_item(name, array::column(py, column))?;
     }
-    let flags: [(&str, Flag); 4] = [
+    let consistent: Vec<f64> = ticks
+        .iter()
+        .flat_map(|t| t.ibjae_consistent_deg.unwrap_or([f64::NAN; 2]))
+        .collect();
+    let consistent = Array2::from_shape_vec((ticks.len(), 2), consistent)
+        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+    d.set_item("ibjae_consistent_deg", consistent.into_pyarray(py))?;
+    let flags: [(&str, Flag); 2] = [
+        ("frame_arrived", |t| t.frame_arrived == Some(true)),
         ("ibjae_occluded", |t| t.ibjae_occluded == Some(true)),
-        ("kbjae_used", |t| t.kbjae_use == Some(ReadingUse::Used)),
-        ("ibjae_used", |t| t.ibjae_use == Some(ReadingUse::Used)),
-        ("ibjae_gated", |t| t.ibjae_use == Some(ReadingUse::Gated)),
     ];
     for (name, f) in flags {
         let column: Vec<bool> = ticks.iter().map(f).collect();
         d.set_item(name, column.into_pyarray(py))?;
+    }
+    let numpy = py.import("numpy")?;
+    let uses: [(&str, Use); 2] = [
+        ("kbjae_use", |t| t.kbjae_use),
+        ("ibjae_use", |t| t.ibjae_use),
+    ];
+    for (name, f) in uses {
+        let column: Vec<&str> = ticks
+            .iter()
+            .map(|t| match f(t) {
+                Some(ReadingUse::Used) => "used",
+                Some(ReadingUse::Missing) => "missing",
+                Some(ReadingUse::Held) => "held",
+                Some(ReadingUse::Gated) => "gated",
+                Some(_) => "other",
+                None => "",
+            })
+            .collect();
+        d.set_item(name, numpy.call_method1("array", (column, "U7"))?)?;
     }
     Ok(d)
 }

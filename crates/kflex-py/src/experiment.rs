@@ -82,7 +82,8 @@ struct RunSeries {
 }
 
 impl RunSeries {
-    fn of(run: &GridRun<'_>) -> Self {
+    /// The run's series; what went into each estimate only with `details`.
+    fn of(run: &GridRun<'_>, details: bool) -> Self {
         let t = &run.trace.trace;
         Self {
             table: run.case.table.clone(),
@@ -102,7 +103,11 @@ impl RunSeries {
                 .iter()
                 .map(|e| e.iter().map(|h| h.unwrap_or(f64::NAN)).collect())
                 .collect(),
-            details: run.details.iter().map(|d| d.to_vec()).collect(),
+            details: if details {
+                run.details.iter().map(|d| d.to_vec()).collect()
+            } else {
+                Vec::new()
+            },
         }
     }
 }
@@ -140,14 +145,18 @@ fn run_dict(py: Python<'_>, run: RunSeries) -> PyResult<Bound<'_, PyDict>> {
     )?;
     let estimates = PyDict::new(py);
     let details = PyDict::new(py);
-    for ((e, series), ticks) in run.estimators.iter().zip(run.estimates).zip(&run.details) {
+    for (i, (e, series)) in run.estimators.iter().zip(run.estimates).enumerate() {
         if *e != EstimatorKind::None {
             estimates.set_item(e.name(), array::column(py, series))?;
-            details.set_item(e.name(), crate::closed_loop::details_dict(py, ticks)?)?;
+            if let Some(ticks) = run.details.get(i) {
+                details.set_item(e.name(), crate::closed_loop::details_dict(py, ticks)?)?;
+            }
         }
     }
     d.set_item("estimates", estimates)?;
-    d.set_item("details", details)?;
+    if !run.details.is_empty() {
+        d.set_item("details", details)?;
+    }
     Ok(d)
 }
 
@@ -170,14 +179,12 @@ fn run_dict(py: Python<'_>, run: RunSeries) -> PyResult<Bound<'_, PyDict>> {
 /// `sheath_deg`, `occlusion`, `seed`, `background`, `estimators`, and
 /// float64 arrays `time_s`, `theta_d_deg`, `theta_c_deg`, `theta_a_deg`,
 /// `theta_a_measured_deg`, `estimates`: estimator name to its estimate,
-/// NaN before it had one, and `details`: estimator name to what went into
-/// its estimate each tick, as arrays (kflex-control's `TickDetails`:
-/// float64 `theta_hat_sigma_deg`, `theta_hat_rate_deg_per_s`, `kbjae_deg`,
-/// `ibjae_deg`, `ibjae_sigma_deg`, `ibjae_silhouette_iou`,
-/// `ibjae_consistent_lo_deg`, `ibjae_consistent_hi_deg`, `ibjae_nis`, NaN
-/// where a tick has none (IBJAE's on the ticks that read no frame); bool
-/// `ibjae_occluded`, `kbjae_used`, `ibjae_used`, `ibjae_gated`), in the
-/// order the runs ended. With
+/// NaN before it had one, and with `details` (default), `details`:
+/// estimator name to what went into its estimate each tick, as arrays
+/// named as the MCAP joint states name them (kflex-control's
+/// `TickDetails`, as `ClosedLoopTrace.details`: about 150 bytes a tick and
+/// estimator, some 200 MB over the paper's grid; `details=False` leaves
+/// them out), in the order the runs ended. With
 /// `mcap_dir`, every run's MCAP log goes there as `kflex-cli run --mcap`
 /// writes them (one per estimator of the run,
 /// `IX_90deg_0pct_none_seed2020.mcap`), and with `mcap_frames` the logs hold
@@ -189,7 +196,8 @@ fn run_dict(py: Python<'_>, run: RunSeries) -> PyResult<Bound<'_, PyDict>> {
 /// run), and the runs' own errors. Ctrl-C stops it: the runs in progress
 /// finish, no further run starts, and `KeyboardInterrupt` is raised.
 #[pyfunction]
-#[pyo3(signature = (grid, models = None, jobs = None, time_series = true, mcap_dir = None, mcap_frames = false))]
+#[pyo3(signature = (grid, models = None, jobs = None, time_series = true, mcap_dir = None, mcap_frames = false, details = true))]
+#[allow(clippy::too_many_arguments)] // Python's keyword arguments
 pub fn run_experiment<'py>(
     py: Python<'py>,
     grid: &Bound<'py, PyAny>,
@@ -198,6 +206,7 @@ pub fn run_experiment<'py>(
     time_series: bool,
     mcap_dir: Option<PathBuf>,
     mcap_frames: bool,
+    details: bool,
 ) -> Result<Bound<'py, PyDict>> {
     let mut grid: ExperimentGrid = if let Ok(g) = grid.extract::<PyExperimentGrid>() {
         g.inner
@@ -239,7 +248,7 @@ pub fn run_experiment<'py>(
         models.check(&grid.estimators, &camera)?;
         let on_run = |run: &GridRun<'_>| {
             if time_series && let Ok(mut r) = runs.lock() {
-                r.push(RunSeries::of(run));
+                r.push(RunSeries::of(run, details));
             }
             if let Some(dir) = &mcap_dir {
                 run.write_logs(dir)?;

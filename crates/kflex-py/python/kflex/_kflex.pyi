@@ -621,6 +621,7 @@ def run_experiment(
     time_series: bool = True,
     mcap_dir: str | os.PathLike[str] | None = None,
     mcap_frames: bool = False,
+    details: bool = True,
 ) -> dict[str, list[dict[str, Any]]]: ...
 
 # ---- estimators on ONNX models: KBJAE, the SCNN, the feature index, IBJAE, LBHJAE --
