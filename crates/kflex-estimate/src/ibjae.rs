@@ -58,7 +58,9 @@
 //! uncertainty from its feature distance. A grid pose that cannot be
 //! rendered (an instrument narrower in range than the grid) is never
 //! consistent. The first frame that needs a band renders its grid: about
-//! 30 µs a pose, 6–18 ms for the full range's bands of 202–606 poses.
+//! 30 µs a pose, 6–18 ms for the full range's bands of 202–606 poses
+//! ([`Ibjae::prepare_hidden_parts`] renders them all up front, for a
+//! controller that cannot spend that in one tick).
 //!
 //! Measured on as-built frames (d = 10 mm, θ 0–50°, three backgrounds, the
 //! working region's band of a trial database): the consistent pose errs by
@@ -305,6 +307,22 @@ impl SilhouetteCheck {
         Ok(())
     }
 
+    /// Renders the nominal silhouettes of band `b`'s grid (database `db`)
+    /// that are not rendered yet, into the room reserved for them.
+    fn fill(&mut self, b: usize, db: &BandDatabase) {
+        let poses = db.index.poses();
+        if self.grid.get(b).is_some_and(|g| g.len() < poses.len()) {
+            for &pose in &poses[self.grid[b].len()..] {
+                // a pose the instrument cannot take explains nothing
+                let bits = match self.render(db.band.roi, pose) {
+                    Ok(()) => bits_of(&self.mask),
+                    Err(_) => [0; BITS_WORDS],
+                };
+                self.grid[b].push(bits);
+            }
+        }
+    }
+
     /// The pose of band `b` (database `db`) that explains the segmented
     /// silhouette `seen` with the rest of the instrument hidden: its entry,
     /// the lowest and highest bends of the poses as consistent (see "Hidden
@@ -317,16 +335,7 @@ impl SilhouetteCheck {
         seen: &Mask,
     ) -> Result<Option<(usize, [f64; 2], f64)>> {
         let poses = db.index.poses();
-        if self.grid.get(b).is_some_and(|g| g.len() < poses.len()) {
-            for &pose in &poses[self.grid[b].len()..] {
-                // a pose the instrument cannot take explains nothing
-                let bits = match self.render(db.band.roi, pose) {
-                    Ok(()) => bits_of(&self.mask),
-                    Err(_) => [0; BITS_WORDS],
-                };
-                self.grid[b].push(bits);
-            }
-        }
+        self.fill(b, db);
         let Some(grid) = self.grid.get(b) else {
             return Ok(None);
         };
@@ -664,6 +673,34 @@ impl Ibjae {
                 .collect(),
         });
         Ok(self)
+    }
+
+    /// Renders now the nominal silhouettes every band's hidden-part search
+    /// needs (see "Hidden parts" in the module docs), which a read otherwise
+    /// renders the first time a band needs them: 6–18 ms for a band of the
+    /// full range, once, in whichever control tick first reads a taped frame
+    /// in it. A controller with a deadline per tick calls this once at
+    /// start-up (about 0.3 s for the 28 bands of the full range), after
+    /// which no read renders. Nothing to do without the silhouette check.
+    pub fn prepare_hidden_parts(&mut self) {
+        if let Some(check) = self.check.as_mut() {
+            for (b, db) in self.bands.iter().enumerate() {
+                check.fill(b, db);
+            }
+        }
+    }
+
+    /// Whether no read will render a band's nominal silhouettes any more:
+    /// every band's are rendered ([`Ibjae::prepare_hidden_parts`], or reads
+    /// that needed them), or there is no silhouette check.
+    #[must_use]
+    pub fn hidden_parts_ready(&self) -> bool {
+        self.check.as_ref().is_none_or(|c| {
+            c.grid
+                .iter()
+                .zip(&self.bands)
+                .all(|(g, db)| g.len() >= db.index.len())
+        })
     }
 
     /// The band databases.

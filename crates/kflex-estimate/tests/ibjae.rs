@@ -462,6 +462,44 @@ fn a_hidden_part_is_read_around_where_the_rest_explains_it() {
     );
 }
 
+/// The hidden-part search's nominal silhouettes, rendered by the first read
+/// that needs them, or all up front by `prepare_hidden_parts` (for a
+/// controller with a deadline per tick): the readings are the same either
+/// way, and once they are ready no read renders them again.
+#[test]
+fn the_hidden_parts_silhouettes_can_be_rendered_up_front() {
+    use kflex_model::Occlusion;
+
+    let camera = Camera::default();
+    let roi = paper_band(&camera).roi;
+    let shape = Instrument::kflex().shape(21.0, 10.0).unwrap();
+    let params = FrameParams {
+        occlusion: Some(Occlusion::new(0.4, 0.5).within(roi)),
+        ..FrameParams::default()
+    };
+    let f = SceneRenderer::new()
+        .render(&camera, &shape, &params)
+        .unwrap();
+    let view = RgbView::packed(&f.rgb, f.width, f.height).unwrap();
+
+    // without the check there is nothing to render
+    let mut plain = ibjae(&camera);
+    assert!(plain.hidden_parts_ready());
+    plain.prepare_hidden_parts();
+    assert!(plain.hidden_parts_ready());
+
+    let mut lazy = checked_ibjae(&camera);
+    assert!(!lazy.hidden_parts_ready());
+    let mut ready = checked_ibjae(&camera);
+    ready.prepare_hidden_parts();
+    assert!(ready.hidden_parts_ready());
+    let up_front = ready.read(&view, &[0]).unwrap().expect("an instrument");
+    let first_need = lazy.read(&view, &[0]).unwrap().expect("an instrument");
+    assert!(first_need.occluded, "{first_need:?}");
+    assert_eq!(up_front, first_need);
+    assert!(lazy.hidden_parts_ready());
+}
+
 /// A silhouette that holds what no pose explains (steel pasted where there
 /// is only tissue: a wrong segmentation, not an occlusion) is not read as a
 /// hidden part: every grid pose leaves the pasted pixels unexplained, and

@@ -505,6 +505,22 @@ impl PyIbjae {
         let reading = py.detach(|| ibjae.read(&RgbView::packed(&rgb, width, height)?, &bands))?;
         Ok(reading.map(Into::into))
     }
+
+    /// Renders now the nominal silhouettes the silhouette check's
+    /// hidden-part search needs, which a read otherwise renders the first
+    /// time a band needs them (kflex-estimate's
+    /// `Ibjae::prepare_hidden_parts`). Runs without the interpreter lock.
+    fn prepare_hidden_parts(&mut self, py: Python<'_>) {
+        let ibjae = &mut self.inner;
+        py.detach(|| ibjae.prepare_hidden_parts());
+    }
+
+    /// Whether no read will render nominal silhouettes any more (every
+    /// band's are rendered, or there is no silhouette check).
+    #[getter]
+    fn hidden_parts_ready(&self) -> bool {
+        self.inner.hidden_parts_ready()
+    }
 }
 
 /// One tick of LBHJAE: `fused` (the filter's `Estimate`), `kbjae_deg`
