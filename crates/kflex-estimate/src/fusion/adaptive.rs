@@ -130,6 +130,21 @@ const INITIAL_RATE_SIGMA: f64 = 100.0;
 /// 40 % at 0 deg (rejecting: 1.69, KBJAE alone 1.75) and 5.02 deg under the
 /// middle 40 % at 270 deg (rejecting: 12.87, IBJAE alone 8.01).
 ///
+/// Why neither choice meets the goal in both places (the readings of those
+/// runs, `examples/fusion_readings.rs` in kflex-control, replayed offline
+/// through a port of this filter): a hidden-part reading's error is mostly a
+/// bias that belongs to the repeat's as-built instrument and camera, not
+/// noise. Under the middle tape at 0 deg it was −0.9, +1.8 and +8.3 deg on
+/// average in the three repeats (20 %; −0.9, +1.8, +4.5 under 40 %), the
+/// last with the true bend outside the consistent bends in every frame; at
+/// 270 deg −2.8, +1.6 and +3.8, where KBJAE errs by 10.8–14.9 deg RMSE. No
+/// innovation statistic tells which of the two sensors is biased without a
+/// third reference. Also tried (not kept): taking them as a weak reading
+/// of the angle alone (gain on the bias zeroed, σ × 3: 3.04 / 2.03 / 6.85
+/// deg, the 20 % case still over KBJAE + 0.5), with their σ × 5 (3.17 /
+/// 1.99 / 6.91), and as bounds widened by 0–6 deg (2.44–3.05 / 1.85–2.25 /
+/// 7.84–10.20).
+///
 /// The filter starts at the first measurement (θ from IBJAE if there is one
 /// that is not too uncertain and has no hidden part, else from KBJAE);
 /// before it the estimate is 0
