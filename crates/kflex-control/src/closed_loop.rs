@@ -728,6 +728,21 @@ impl ClosedLoopScenario {
         ticks: &[ReplayTick],
         frames: &[RecordedFrame],
     ) -> Result<Vec<Option<f64>>> {
+        Ok(self.replay_with_details(estimator, ticks, frames)?.0)
+    }
+
+    /// [`ClosedLoopScenario::replay`], with what went into each estimate
+    /// ([`AngleEstimator::details`], `frame_arrived` set as a run sets it),
+    /// aligned with the estimates.
+    ///
+    /// # Errors
+    /// As [`ClosedLoopScenario::replay`].
+    pub fn replay_with_details(
+        &self,
+        estimator: &mut dyn AngleEstimator,
+        ticks: &[ReplayTick],
+        frames: &[RecordedFrame],
+    ) -> Result<(Vec<Option<f64>>, Vec<TickDetails>)> {
         let sampler = self.checked()?;
         let motion = &self.motion;
         let dt = motion.dt_s;
@@ -784,6 +799,7 @@ impl ClosedLoopScenario {
             })?;
         }
         let mut out = Vec::with_capacity(ticks.len());
+        let mut details = Vec::with_capacity(ticks.len());
         let mut next = 0;
         for tick in ticks {
             let (command, time_s) = (tick.command, offset_s + tick.time_s);
@@ -809,7 +825,11 @@ impl ClosedLoopScenario {
                 theta_d_rate_deg_per_s: tick.theta_d_rate_deg_per_s,
                 frame,
             })?);
+            details.push(TickDetails {
+                frame_arrived: Some(frame.is_some()),
+                ..estimator.details()
+            });
         }
-        Ok(out)
+        Ok((out, details))
     }
 }

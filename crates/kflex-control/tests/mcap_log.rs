@@ -353,6 +353,23 @@ fn a_replay_over_the_read_log_gives_the_runs_estimates() {
         }
     }
     assert!(compared > 150, "{compared}");
+    // with the details: the same estimates, and the frames reach the
+    // estimator on the ticks they reached it in the run (a run's log says
+    // which), lost ones included
+    let (again, details) = scenario
+        .replay_with_details(&mut GreenMeter::default(), &ticks, &log.frames)
+        .unwrap();
+    assert_eq!(again, replayed);
+    assert_eq!(details.len(), log.states.len());
+    let arrived = |d: &kflex_control::TickDetails| d.frame_arrived.unwrap();
+    for (state, d) in log.states.iter().zip(&details) {
+        if state.time_s + 1e-9 >= first {
+            assert_eq!(arrived(d), arrived(&state.details), "at {} s", state.time_s);
+        }
+    }
+    // (the last frame may arrive after the last tick)
+    let n = details.iter().filter(|d| arrived(d)).count();
+    assert!(n + 1 >= log.frames.len() && n <= log.frames.len(), "{n}");
     // a frame that does not fill its window is refused, not read past
     let mut broken = log.frames.clone();
     broken[0].rgb.pop();
