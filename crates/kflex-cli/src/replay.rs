@@ -1,13 +1,18 @@
 //! `kflex-cli replay LOG.mcap`: runs estimators again over a recorded run
 //! (its commands and camera frames, `run --scenario … --mcap --mcap-frames`,
 //! or a log from elsewhere whose channels follow the documented schemas)
-//! and prints their RMSE against the log's true angle.
+//! and prints their RMSE against the log's true angle, and what became of
+//! the camera's frames: how many IBJAE read an angle from, how many of those
+//! with a hidden part, and how many the fusion used or gated.
 
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use kflex_control::{ClosedLoopScenario, EstimatorKind, ModelDir, estimation_rmse_deg, read_mcap};
+use kflex_control::{
+    ClosedLoopScenario, EstimatorKind, ModelDir, ReadingUse, TickDetails, estimation_rmse_deg,
+    read_mcap,
+};
 use kflex_model::Camera;
 
 use crate::grid::estimator;
@@ -27,6 +32,39 @@ pub struct ReplayArgs {
     /// The trained models' directory (kbjae.onnx, scnn.onnx, db/).
     #[arg(long, value_name = "DIR", default_value = kflex_control::MODELS_DIR)]
     models: PathBuf,
+}
+
+/// The camera's readings of a run, as the table prints them: frames IBJAE
+/// read an angle from, of those how many took part of the instrument as
+/// hidden, and for a fused estimator what the filter did with them (used,
+/// gated); `-` where the estimator has no camera (`camera`) or no filter
+/// (`fused`).
+fn readings(details: &[TickDetails], camera: bool, fused: bool) -> String {
+    let count = |f: &dyn Fn(&TickDetails) -> bool| details.iter().filter(|d| f(d)).count();
+    let dash = || "-".to_string();
+    let (read, hidden) = if camera {
+        (
+            count(&|d| d.ibjae_deg.is_some()).to_string(),
+            count(&|d| d.ibjae_occluded == Some(true)).to_string(),
+        )
+    } else {
+        (dash(), dash())
+    };
+    let (used, gated) = if fused {
+        (
+            count(&|d| d.ibjae_use == Some(ReadingUse::Used)).to_string(),
+            count(&|d| d.ibjae_use == Some(ReadingUse::Gated)).to_string(),
+        )
+    } else {
+        (dash(), dash())
+    };
+    format!("{read:>11} {hidden:>6} {used:>6} {gated:>6}")
+}
+
+/// Whether an estimator of `kind` reads frames, and whether it fuses.
+fn has_camera_and_filter(kind: EstimatorKind) -> (bool, bool) {
+    let fused = matches!(kind, EstimatorKind::Lbhjae | EstimatorKind::LbhjaeAdaptive);
+    (fused || kind == EstimatorKind::Ibjae, fused)
 }
 
 /// RMSE of `estimate` against `truth` over the ticks that have an
@@ -92,21 +130,33 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         );
     }
     println!(
-        "\n{:>16} | {:>13} {:>7}",
-        "estimator", "RMSE (deg)", "ticks"
+        "\n{:>16} | {:>13} {:>7} | {:>11} {:>6} {:>6} {:>6}",
+        "estimator", "RMSE (deg)", "ticks", "frames read", "hidden", "used", "gated"
     );
     let logged: Vec<Option<f64>> = log.states.iter().map(|s| s.theta_hat_deg).collect();
     if let Some((r, n)) = scored(&truth, &logged) {
-        println!("{:>16} | {r:>13.3} {n:>7}", "as logged");
+        // the logged estimator's own, as far as its log tells
+        let details: Vec<TickDetails> = log.states.iter().map(|s| s.details).collect();
+        let fused = details.iter().any(|d| d.ibjae_use.is_some());
+        let camera = fused || details.iter().any(|d| d.ibjae_deg.is_some());
+        let camera_use = readings(&details, camera, fused);
+        println!("{:>16} | {r:>13.3} {n:>7} | {camera_use}", "as logged");
     }
     for kind in kinds {
         let mut estimator = models.make(kind, &camera)?;
-        let estimate = scenario
-            .replay(estimator.as_mut(), &ticks, &log.frames)
+        let (estimate, details) = scenario
+            .replay_with_details(estimator.as_mut(), &ticks, &log.frames)
             .with_context(|| format!("replaying {}", kind.name()))?;
+        let (camera, fused) = has_camera_and_filter(kind);
+        let camera_use = readings(&details, camera, fused);
         match scored(&truth, &estimate) {
-            Some((r, n)) => println!("{:>16} | {r:>13.3} {n:>7}", kind.name()),
-            None => println!("{:>16} | {:>13} {:>7}", kind.name(), "no estimate", 0),
+            Some((r, n)) => println!("{:>16} | {r:>13.3} {n:>7} | {camera_use}", kind.name()),
+            None => println!(
+                "{:>16} | {:>13} {:>7} | {camera_use}",
+                kind.name(),
+                "no estimate",
+                0
+            ),
         }
     }
     Ok(())

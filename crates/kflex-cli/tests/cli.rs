@@ -1321,6 +1321,33 @@ periods = 1.0
     }
     // the log's own estimate is IBJAE's
     assert!((replayed_rmse(&stdout, "as logged") - recorded("ibjae")).abs() < 1e-3);
+    // what became of the frames: KBJAE reads none; IBJAE and LBHJAE read
+    // the same frames (most of the 188: a random-weight SCNN, no tape), and
+    // LBHJAE's filter used or gated each; the log says the same of IBJAE's
+    let row = |name: &str| -> Vec<String> {
+        let line = stdout
+            .lines()
+            .find(|l| l.split('|').next().is_some_and(|c| c.trim() == name))
+            .unwrap_or_else(|| panic!("no row {name} in\n{stdout}"));
+        line.split('|')
+            .nth(2)
+            .unwrap()
+            .split_whitespace()
+            .map(String::from)
+            .collect()
+    };
+    assert_eq!(row("kbjae"), ["-", "-", "-", "-"], "{stdout}");
+    let (ibjae, lbhjae) = (row("ibjae"), row("lbhjae"));
+    let read: usize = ibjae[0].parse().unwrap();
+    assert!(read > 150 && read <= 188, "{stdout}");
+    assert_eq!(&ibjae[2..], ["-", "-"], "{stdout}");
+    // (the replay's first reading may pick another band: its hint did not
+    // come from the pre-roll's frames)
+    let logged: usize = row("as logged")[0].parse().unwrap();
+    assert!(logged.abs_diff(read) <= 2, "{stdout}");
+    assert_eq!(row("as logged")[2..], ["-", "-"], "{stdout}");
+    let n = |s: &String| s.parse::<usize>().unwrap();
+    assert_eq!(n(&lbhjae[2]) + n(&lbhjae[3]), n(&lbhjae[0]), "{stdout}");
     // a log without frames replays, saying camera-based estimators see none
     std::fs::create_dir_all(dir.join("plain")).unwrap();
     run_scenario(
