@@ -485,17 +485,20 @@ def test_run_experiment_tells_what_went_into_each_estimate(models, paper_db, tmp
     uses = {"kbjae_use", "ibjae_use"}
     assert set(run["details"]) == {"kbjae", "ibjae", "lbhjae-adaptive"}
     for d in run["details"].values():
-        assert set(d) == floats | flags | uses | {"ibjae_consistent_deg"}
+        assert set(d) == floats | flags | uses | {"ibjae_consistent_deg", "theta_hat_covariance"}
         assert all(d[k].dtype == np.float64 and d[k].shape == (n,) for k in floats)
         assert all(d[k].dtype == np.bool_ and d[k].shape == (n,) for k in flags)
         assert all(d[k].dtype.kind == "U" and d[k].shape == (n,) for k in uses)
-        assert d["ibjae_consistent_deg"].shape == (n, 2)
+        assert d["ibjae_consistent_deg"].shape == (n, 2) and d["theta_hat_covariance"].shape == (n, 2, 2)
         # the loop's own: the same frames reach each estimator of the run
         np.testing.assert_array_equal(d["frame_arrived"], run["details"]["lbhjae-adaptive"]["frame_arrived"])
 
     fused = run["details"]["lbhjae-adaptive"]
     assert np.all(np.isfinite(fused["kbjae_deg"])) and np.all(fused["kbjae_use"] == "used")
     assert np.all(fused["theta_hat_sigma_deg"] > 0.0)
+    cov = fused["theta_hat_covariance"]
+    np.testing.assert_allclose(np.sqrt(cov[:, 0, 0]), fused["theta_hat_sigma_deg"], rtol=1e-12)
+    np.testing.assert_array_equal(cov[:, 0, 1], cov[:, 1, 0])
     read = np.isfinite(fused["ibjae_deg"])
     # a 30 Hz camera over 100 Hz ticks; a reading only where a frame arrived
     assert 0.2 < read.mean() <= 0.34, read.mean()
@@ -519,3 +522,19 @@ def test_run_experiment_tells_what_went_into_each_estimate(models, paper_db, tmp
     (bare,) = kflex.run_experiment(grid, models=tmp_path, jobs=1, details=False)["runs"]
     assert "details" not in bare
     np.testing.assert_array_equal(bare["estimates"]["ibjae"], run["estimates"]["ibjae"])
+
+
+def test_hidden_part_silhouettes_render_up_front(models, camera, paper_db) -> None:
+    """With the silhouette check, the hidden-part search's silhouettes are
+    rendered by the first read that needs them, or all at once by
+    ``prepare_hidden_parts`` (for a loop with a deadline per tick)."""
+    scnn = models / "scnn_test.onnx"
+    assert kflex.Ibjae(scnn, [paper_db]).hidden_parts_ready  # no check, nothing to render
+    ibjae = kflex.Ibjae(scnn, [paper_db], camera=camera)
+    assert not ibjae.hidden_parts_ready
+    ibjae.prepare_hidden_parts()
+    assert ibjae.hidden_parts_ready
+    lbhjae = kflex.Lbhjae(models / "kbjae_test.onnx", scnn, [paper_db], kflex.AdaptiveParams(), camera=camera)
+    assert not lbhjae.hidden_parts_ready
+    lbhjae.prepare_hidden_parts()
+    assert lbhjae.hidden_parts_ready

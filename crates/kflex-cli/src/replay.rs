@@ -135,11 +135,16 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
     );
     let logged: Vec<Option<f64>> = log.states.iter().map(|s| s.theta_hat_deg).collect();
     if let Some((r, n)) = scored(&truth, &logged) {
-        // the logged estimator's own, as far as its log tells
+        // the logged estimator's own, as far as its log tells ("?" for a
+        // log without the details: one from an older kflex or from elsewhere)
         let details: Vec<TickDetails> = log.states.iter().map(|s| s.details).collect();
         let fused = details.iter().any(|d| d.ibjae_use.is_some());
         let camera = fused || details.iter().any(|d| d.ibjae_deg.is_some());
-        let camera_use = readings(&details, camera, fused);
+        let camera_use = if details.iter().all(|d| *d == TickDetails::default()) {
+            format!("{:>11} {:>6} {:>6} {:>6}", "?", "?", "?", "?")
+        } else {
+            readings(&details, camera, fused)
+        };
         println!("{:>16} | {r:>13.3} {n:>7} | {camera_use}", "as logged");
     }
     for kind in kinds {

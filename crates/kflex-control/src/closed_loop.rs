@@ -210,20 +210,22 @@ impl ReadingUse {
 
 /// What went into one tick's estimate ([`AngleEstimator::details`]): each
 /// field `None` where the estimator has no such thing this tick. LBHJAE
-/// gives its uncertainty and rate, KBJAE's reading and what the filter did
+/// gives its uncertainty (σ and the covariance) and rate, KBJAE's reading and what the filter did
 /// with each reading every tick, and IBJAE's reading on the ticks that read
 /// a frame (its silhouette IoU with the silhouette check, its consistent
 /// bends where it took a part as hidden, `ν²/S` where the filter gated it);
 /// IBJAE alone its reading; KBJAE nothing (its reading is its estimate).
-/// `frame_arrived` is the loop's, whatever the estimator: whether a frame
-/// reached it this tick (one that arrived but gave no reading had no
-/// instrument in it, or was taken for a window the estimator no longer
-/// reads). Angles in deg.
+/// `frame_arrived` is the loop's, whatever the estimator: whether the run's
+/// camera delivered a frame this tick (where several estimators share a
+/// run, to each of them, including one that asked for none and ignores
+/// it; one that arrived but gave a camera estimator no reading had no
+/// instrument in it, or was taken for a window it no longer reads). Angles
+/// in deg.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default)]
 #[non_exhaustive]
 pub struct TickDetails {
-    /// Whether a camera frame reached the estimator this tick (set by the
+    /// Whether the run's camera delivered a frame this tick (set by the
     /// loop: [`ClosedLoopScenario::run`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub frame_arrived: Option<bool>,
@@ -233,6 +235,9 @@ pub struct TickDetails {
     /// The fusion's estimate of the rate, deg/s.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub theta_hat_rate_deg_per_s: Option<f64>,
+    /// The fusion filter's covariance of `[θ̂, θ̂']`, deg², deg²/s, deg²/s².
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub theta_hat_covariance: Option<[[f64; 2]; 2]>,
     /// KBJAE's angle.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub kbjae_deg: Option<f64>,
@@ -732,8 +737,9 @@ impl ClosedLoopScenario {
     }
 
     /// [`ClosedLoopScenario::replay`], with what went into each estimate
-    /// ([`AngleEstimator::details`], `frame_arrived` set as a run sets it),
-    /// aligned with the estimates.
+    /// ([`AngleEstimator::details`], `frame_arrived` set as a run sets it,
+    /// except before the first logged frame arrives: a frame captured in
+    /// the pre-roll is not in a log), aligned with the estimates.
     ///
     /// # Errors
     /// As [`ClosedLoopScenario::replay`].

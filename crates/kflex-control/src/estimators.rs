@@ -54,9 +54,10 @@ fn lbhjae_details(e: &LbhjaeEstimate) -> TickDetails {
     let (ibjae_use, ibjae_nis) = ReadingUse::of(e.fused.ibjae);
     TickDetails {
         theta_hat_sigma_deg: Some(e.fused.covariance[0][0])
-            .filter(|v| v.is_finite() && *v >= 0.0)
-            .map(f64::sqrt),
+            .filter(|v| v.is_finite())
+            .map(|v| v.max(0.0).sqrt()),
         theta_hat_rate_deg_per_s: Some(e.fused.theta_hat_rate_deg_per_s),
+        theta_hat_covariance: Some(e.fused.covariance),
         kbjae_deg: Some(e.kbjae_deg),
         kbjae_use: Some(kbjae_use),
         ibjae_use: Some(ibjae_use),

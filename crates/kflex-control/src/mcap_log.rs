@@ -6,8 +6,8 @@
 //! * [`JOINT_STATES_TOPIC`] ([`JOINT_STATE_SCHEMA`]): one message per
 //!   evaluated tick with θ_d, its rate, θ_c, the true and the measured θ_a
 //!   and the estimate θ̂ (`null` before the estimator had one); and, where
-//!   the estimator tells them ([`TickDetails`]), θ̂'s standard deviation
-//!   and rate, the readings it fused (KBJAE's angle; IBJAE's angle,
+//!   the estimator tells them ([`TickDetails`]), θ̂'s standard deviation,
+//!   rate and covariance, the readings it fused (KBJAE's angle; IBJAE's angle,
 //!   uncertainty, silhouette IoU, hidden part and consistent bends on the
 //!   ticks that read a frame) and what it did with each (`used`, `gated`
 //!   with `ν²/S`, `missing`, `held`), and whether a frame reached it that
@@ -59,9 +59,10 @@ pub const JOINT_STATE_SCHEMA: &str = r#"{
     "theta_a_deg": {"type": "number", "description": "true joint angle"},
     "theta_a_measured_deg": {"type": "number", "description": "joint angle as the tracker measured it"},
     "theta_hat_deg": {"type": ["number", "null"], "description": "the estimate; null before the estimator had one"},
-    "frame_arrived": {"type": "boolean", "description": "whether a camera frame reached the estimator this tick"},
+    "frame_arrived": {"type": "boolean", "description": "whether the run's camera delivered a frame this tick"},
     "theta_hat_sigma_deg": {"type": "number", "description": "the estimate's standard deviation (a fusion filter's)"},
     "theta_hat_rate_deg_per_s": {"type": "number", "description": "the fusion's estimate of the rate, deg/s"},
+    "theta_hat_covariance": {"type": "array", "items": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}, "minItems": 2, "maxItems": 2, "description": "the fusion filter's covariance of [theta_hat, its rate]: deg^2, deg^2/s, deg^2/s^2"},
     "kbjae_deg": {"type": "number", "description": "KBJAE's reading"},
     "kbjae_use": {"type": "string", "enum": ["used", "missing", "held", "gated", "other"], "description": "what the fusion did with KBJAE's reading"},
     "ibjae_deg": {"type": "number", "description": "IBJAE's reading of a frame read this tick"},

@@ -213,6 +213,9 @@ fn each_tick_tells_what_went_into_its_estimate() {
             "{d:?}"
         );
         assert!(d.theta_hat_rate_deg_per_s.is_some_and(f64::is_finite));
+        let c = d.theta_hat_covariance.unwrap();
+        assert_eq!(d.theta_hat_sigma_deg, Some(c[0][0].sqrt()));
+        assert_eq!(c[0][1], c[1][0]);
         match d.ibjae_deg {
             Some(theta) => {
                 read += 1;

@@ -367,9 +367,10 @@ fn a_replay_over_the_read_log_gives_the_runs_estimates() {
             assert_eq!(arrived(d), arrived(&state.details), "at {} s", state.time_s);
         }
     }
-    // (the last frame may arrive after the last tick)
+    // (the frames still in flight at the end never arrive: with 45 ms of
+    // latency at 30 frames/s, at most two)
     let n = details.iter().filter(|d| arrived(d)).count();
-    assert!(n + 1 >= log.frames.len() && n <= log.frames.len(), "{n}");
+    assert!(n + 2 >= log.frames.len() && n <= log.frames.len(), "{n}");
     // a frame that does not fill its window is refused, not read past
     let mut broken = log.frames.clone();
     broken[0].rgb.pop();

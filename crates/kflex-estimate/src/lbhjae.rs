@@ -62,6 +62,19 @@ impl Lbhjae {
         }
     }
 
+    /// Renders IBJAE's hidden-part silhouettes up front
+    /// ([`Ibjae::prepare_hidden_parts`]), so that no later tick does.
+    pub fn prepare_hidden_parts(&mut self) {
+        self.ibjae.prepare_hidden_parts();
+    }
+
+    /// Whether no tick will render IBJAE's hidden-part silhouettes any more
+    /// ([`Ibjae::hidden_parts_ready`]).
+    #[must_use]
+    pub fn hidden_parts_ready(&self) -> bool {
+        self.ibjae.hidden_parts_ready()
+    }
+
     /// The last tick's estimate and what each estimator read in it (as
     /// [`Lbhjae::step`] returned it); `None` before the first tick and
     /// after [`Lbhjae::reset`].

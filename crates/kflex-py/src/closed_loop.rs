@@ -148,7 +148,9 @@ impl PyClosedLoopTrace {
 
     /// What went into each tick's estimate, as the estimator tells it
     /// (kflex-control's `TickDetails`, as `run_experiment`'s `details`): a
-    /// `dict` of float64 arrays (NaN where a tick has none) and bool arrays.
+    /// `dict` of arrays named as the MCAP joint states' fields (float64,
+    /// NaN where a tick has none; bool; `kbjae_use` and `ibjae_use` as
+    /// strings, `""` where none).
     #[getter]
     fn details<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         details_dict(py, &self.inner.details)
@@ -187,7 +189,7 @@ impl PyClosedLoopTrace {
 
 /// One estimator's [`TickDetails`] over a run as arrays, named as the MCAP
 /// joint states name them: float64 with NaN where a tick has none
-/// (`ibjae_consistent_deg` n × 2), bool `frame_arrived` and
+/// (`ibjae_consistent_deg` n × 2, `theta_hat_covariance` n × 2 × 2), bool `frame_arrived` and
 /// `ibjae_occluded` (false where none), and `kbjae_use` / `ibjae_use` as
 /// strings (`"used"`, `"gated"`, `"missing"`, `"held"`, `"other"`; `""`
 /// where none).
@@ -221,6 +223,16 @@ pub(crate) fn details_dict<'py>(
     let consistent = Array2::from_shape_vec((ticks.len(), 2), consistent)
         .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
     d.set_item("ibjae_consistent_deg", consistent.into_pyarray(py))?;
+    let covariance: Vec<f64> = ticks
+        .iter()
+        .flat_map(|t| {
+            let c = t.theta_hat_covariance.unwrap_or([[f64::NAN; 2]; 2]);
+            [c[0][0], c[0][1], c[1][0], c[1][1]]
+        })
+        .collect();
+    let covariance = numpy::ndarray::Array3::from_shape_vec((ticks.len(), 2, 2), covariance)
+        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+    d.set_item("theta_hat_covariance", covariance.into_pyarray(py))?;
     let flags: [(&str, Flag); 2] = [
         ("frame_arrived", |t| t.frame_arrived == Some(true)),
         ("ibjae_occluded", |t| t.ibjae_occluded == Some(true)),

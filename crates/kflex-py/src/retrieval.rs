@@ -643,4 +643,21 @@ impl PyLbhjae {
             .unwrap_or_else(PoisonError::into_inner)
             .reset();
     }
+
+    /// Renders IBJAE's hidden-part silhouettes up front (as
+    /// `Ibjae.prepare_hidden_parts`), so that no later step does. Runs
+    /// without the interpreter lock.
+    fn prepare_hidden_parts(&mut self, py: Python<'_>) {
+        let lbhjae = self.inner.get_mut().unwrap_or_else(PoisonError::into_inner);
+        py.detach(|| lbhjae.prepare_hidden_parts());
+    }
+
+    /// Whether no step will render IBJAE's hidden-part silhouettes any more.
+    #[getter]
+    fn hidden_parts_ready(&self) -> bool {
+        self.inner
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .hidden_parts_ready()
+    }
 }
