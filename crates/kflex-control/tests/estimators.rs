@@ -37,6 +37,14 @@ fn ibjae() -> Ibjae {
     Ibjae::new(scnn, SegmentParams::default(), vec![db]).unwrap()
 }
 
+/// LBHJAE with the adaptive filter on the test models and [`ibjae`].
+fn adaptive_lbhjae() -> Lbhjae {
+    let kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    let fusion: Box<dyn Fusion + Send> =
+        Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap());
+    Lbhjae::new(kbjae, ibjae(), fusion)
+}
+
 fn plant() -> Plant {
     Plant::new(PlantConfig {
         noise: None,
@@ -92,10 +100,7 @@ fn ibjae_reads_the_window_of_its_band_and_holds_between_frames() {
 
 #[test]
 fn lbhjae_closes_the_loop() {
-    let kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
-    let fusion: Box<dyn Fusion + Send> =
-        Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap());
-    let mut lbhjae = Lbhjae::new(kbjae, ibjae(), fusion);
+    let mut lbhjae = adaptive_lbhjae();
     let compensated = ClosedLoopScenario {
         compensator: Some(Default::default()),
         ..scenario()
@@ -197,10 +202,7 @@ fn a_backlash_like_kbjae_on_the_masters_rate_compensates_without_chatter() {
 /// reading on those ticks; KBJAE nothing beyond its estimate.
 #[test]
 fn each_tick_tells_what_went_into_its_estimate() {
-    let kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
-    let fusion: Box<dyn Fusion + Send> =
-        Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap());
-    let mut lbhjae = Lbhjae::new(kbjae, ibjae(), fusion);
+    let mut lbhjae = adaptive_lbhjae();
     let out = run(&mut lbhjae).unwrap();
     let n = out.theta_hat_deg.len();
     assert_eq!(out.details.len(), n);
@@ -288,10 +290,7 @@ fn each_tick_tells_what_went_into_its_estimate() {
 #[cfg(feature = "mcap")]
 #[test]
 fn the_details_go_into_the_log() {
-    let kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
-    let fusion: Box<dyn Fusion + Send> =
-        Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap());
-    let mut lbhjae = Lbhjae::new(kbjae, ibjae(), fusion);
+    let mut lbhjae = adaptive_lbhjae();
     let scenario = scenario();
     let out = scenario.run(&mut plant(), &mut lbhjae, 4).unwrap();
     let dir = std::env::temp_dir().join(format!("kflex-details-{}", std::process::id()));

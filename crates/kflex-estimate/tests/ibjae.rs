@@ -462,24 +462,28 @@ fn a_hidden_part_is_read_around_where_the_rest_explains_it() {
     );
 }
 
+/// A frame of the nominal instrument at `theta` deg, d = 10 mm, with tape
+/// over the middle 40 % of it in the paper's region.
+fn middle_taped(camera: &Camera, theta: f64) -> kflex_model::Frame {
+    let roi = paper_band(camera).roi;
+    let shape = Instrument::kflex().shape(theta, 10.0).unwrap();
+    let params = FrameParams {
+        occlusion: Some(kflex_model::Occlusion::new(0.4, 0.5).within(roi)),
+        ..FrameParams::default()
+    };
+    SceneRenderer::new()
+        .render(camera, &shape, &params)
+        .unwrap()
+}
+
 /// The hidden-part search's nominal silhouettes, rendered by the first read
 /// that needs them, or all up front by `prepare_hidden_parts` (for a
 /// controller with a deadline per tick): the readings are the same either
 /// way, and once they are ready no read renders them again.
 #[test]
 fn the_hidden_parts_silhouettes_can_be_rendered_up_front() {
-    use kflex_model::Occlusion;
-
     let camera = Camera::default();
-    let roi = paper_band(&camera).roi;
-    let shape = Instrument::kflex().shape(21.0, 10.0).unwrap();
-    let params = FrameParams {
-        occlusion: Some(Occlusion::new(0.4, 0.5).within(roi)),
-        ..FrameParams::default()
-    };
-    let f = SceneRenderer::new()
-        .render(&camera, &shape, &params)
-        .unwrap();
+    let f = middle_taped(&camera, 21.0);
     let view = RgbView::packed(&f.rgb, f.width, f.height).unwrap();
 
     // without the check there is nothing to render
@@ -511,20 +515,10 @@ fn the_hidden_parts_silhouettes_can_be_rendered_up_front() {
 #[test]
 fn pixels_no_pose_explains_are_no_hidden_part() {
     use kflex_estimate::UNEXPLAINED_SIGMA_DEG;
-    use kflex_model::Occlusion;
-
     let camera = Camera::default();
-    let instrument = Instrument::kflex();
     let mut checked = checked_ibjae(&camera);
+    let f = middle_taped(&camera, 20.0);
     let roi = paper_band(&camera).roi;
-    let shape = instrument.shape(20.0, 10.0).unwrap();
-    let params = FrameParams {
-        occlusion: Some(Occlusion::new(0.4, 0.5).within(roi)),
-        ..FrameParams::default()
-    };
-    let f = SceneRenderer::new()
-        .render(&camera, &shape, &params)
-        .unwrap();
     let mut read = |rgb: &[u8]| {
         let view = RgbView::packed(rgb, f.width, f.height).unwrap();
         checked.read(&view, &[0]).unwrap().expect("an instrument")
