@@ -475,7 +475,8 @@ def test_run_experiment_tells_what_went_into_each_estimate(models, paper_db, tmp
     scenario = grid.scenario
     scenario["motion"]["periods"] = 0.5
     grid.scenario = scenario
-    (run,) = kflex.run_experiment(grid, models=tmp_path, jobs=1)["runs"]
+    logs = tmp_path / "logs"
+    (run,) = kflex.run_experiment(grid, models=tmp_path, jobs=1, mcap_dir=logs)["runs"]
     n = len(run["time_s"])
     floats = {
         "theta_hat_sigma_deg", "theta_hat_rate_deg_per_s", "kbjae_deg", "ibjae_deg", "ibjae_sigma_deg",
@@ -518,6 +519,24 @@ def test_run_experiment_tells_what_went_into_each_estimate(models, paper_db, tmp
     kbjae = run["details"]["kbjae"]
     assert all(np.isnan(kbjae[k]).all() for k in floats)
     assert not kbjae["ibjae_occluded"].any() and np.all(kbjae["kbjae_use"] == "")
+    # the run's MCAP log of LBHJAE says the same in its joint states
+    import json
+
+    from mcap.reader import make_reader
+
+    (log,) = logs.glob("*lbhjae-adaptive*.mcap")
+    with log.open("rb") as f:
+        states = [json.loads(m.data) for _, _, m in make_reader(f).iter_messages(topics=["/kflex/joint_states"])]
+    assert len(states) == n
+
+    def column(key: str) -> np.ndarray:
+        return np.array([s.get(key, np.nan) for s in states], dtype=np.float64)
+
+    for key in ("theta_hat_sigma_deg", "kbjae_deg", "ibjae_deg", "ibjae_sigma_deg", "ibjae_nis"):
+        np.testing.assert_array_equal(column(key), fused[key], err_msg=key)
+    assert [s.get("ibjae_use", "") for s in states] == list(fused["ibjae_use"])
+    assert [s["frame_arrived"] for s in states] == list(fused["frame_arrived"])
+    np.testing.assert_array_equal([s["theta_hat_covariance"] for s in states], fused["theta_hat_covariance"])
     # and without them
     (bare,) = kflex.run_experiment(grid, models=tmp_path, jobs=1, details=False)["runs"]
     assert "details" not in bare
