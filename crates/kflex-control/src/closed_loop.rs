@@ -210,9 +210,9 @@ impl ReadingUse {
 
 /// What went into one tick's estimate ([`AngleEstimator::details`]): each
 /// field `None` where the estimator has no such thing this tick. LBHJAE
-/// gives its uncertainty (σ and the covariance) and rate, KBJAE's reading and what the filter did
-/// with each reading every tick, and IBJAE's reading on the ticks that read
-/// a frame (its silhouette IoU with the silhouette check, its consistent
+/// gives its uncertainty (σ, for plotting, and the covariance) and rate,
+/// KBJAE's reading and what the filter did with each reading every tick,
+/// and IBJAE's reading on the ticks that read a frame (its silhouette IoU with the silhouette check, its consistent
 /// bends where it took a part as hidden, `ν²/S` where the filter gated it);
 /// IBJAE alone its reading; KBJAE nothing (its reading is its estimate).
 /// `frame_arrived` is the loop's, whatever the estimator: whether the run's
@@ -267,6 +267,18 @@ pub struct TickDetails {
     /// A gated reading's normalised innovation squared `ν²/S`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ibjae_nis: Option<f64>,
+}
+
+impl TickDetails {
+    /// These details with `frame_arrived` set (by the loop that delivered,
+    /// or did not deliver, a frame this tick).
+    #[must_use]
+    pub(crate) fn with_frame(self, arrived: bool) -> Self {
+        Self {
+            frame_arrived: Some(arrived),
+            ..self
+        }
+    }
 }
 
 /// A stand-in for a camera-based estimator: the plant's true angle at each
@@ -701,10 +713,8 @@ impl ClosedLoopScenario {
                 t.theta_a_measured_deg.push(state.theta_a_measured_deg);
                 out.theta_c_deg.push(theta_c);
                 out.theta_hat_deg.push(theta_hat);
-                out.details.push(TickDetails {
-                    frame_arrived: Some(frame.is_some()),
-                    ..estimator.details()
-                });
+                out.details
+                    .push(estimator.details().with_frame(frame.is_some()));
             }
         }
         out.frames = camera.counts;
@@ -831,10 +841,7 @@ impl ClosedLoopScenario {
                 theta_d_rate_deg_per_s: tick.theta_d_rate_deg_per_s,
                 frame,
             })?);
-            details.push(TickDetails {
-                frame_arrived: Some(frame.is_some()),
-                ..estimator.details()
-            });
+            details.push(estimator.details().with_frame(frame.is_some()));
         }
         Ok((out, details))
     }

@@ -709,10 +709,7 @@ impl AngleEstimator for Fanout {
             .zip(&mut self.details)
         {
             hats.push(m.step(tick)?);
-            details.push(TickDetails {
-                frame_arrived: Some(tick.frame.is_some()),
-                ..m.details()
-            });
+            details.push(m.details().with_frame(tick.frame.is_some()));
         }
         Ok(self.hats.first().and_then(|h| h.last().copied().flatten()))
     }
