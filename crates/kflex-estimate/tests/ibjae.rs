@@ -9,8 +9,8 @@ mod paper_ibjae;
 use paper_ibjae::{checked_ibjae, data, ibjae, paper_band};
 
 use kflex_estimate::{
-    AdaptiveKalman, AdaptiveParams, EstimateError, Fusion, Ibjae, IbjaeReading, Kbjae, Lbhjae,
-    RgbView, Scnn, SegmentParams, build_band_database,
+    AdaptiveKalman, AdaptiveParams, DEFAULT_MIN_SILHOUETTE_IOU, EstimateError, Fusion, Ibjae,
+    IbjaeReading, Kbjae, Lbhjae, RgbView, Scnn, SegmentParams, build_band_database,
 };
 use kflex_model::{Camera, Command, FrameParams, Instrument, Roi, SceneRenderer};
 
@@ -502,6 +502,30 @@ fn the_hidden_parts_silhouettes_can_be_rendered_up_front() {
     assert!(first_need.occluded, "{first_need:?}");
     assert_eq!(up_front, first_need);
     assert!(lazy.hidden_parts_ready());
+
+    // with two bands, a read renders the band it needs and no other
+    let mut scnn = Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
+    let mut band = |lo: f64, hi: f64| {
+        let poses = kflex_model::PoseRange {
+            theta_deg: [lo, hi],
+            ..paper_band(&camera).poses
+        };
+        let band = kflex_model::WorkingBand {
+            poses,
+            ..paper_band(&camera)
+        };
+        build_band_database(&mut scnn, &camera, &Instrument::kflex(), &band, 1.0, 1.0).unwrap()
+    };
+    let (near, far) = (band(0.0, 30.0), band(31.0, 50.0));
+    let mut two = Ibjae::new(scnn, SegmentParams::default(), vec![near, far])
+        .unwrap()
+        .with_silhouette_check(&camera, &Instrument::kflex(), DEFAULT_MIN_SILHOUETTE_IOU)
+        .unwrap();
+    let r = two.read(&view, &[0]).unwrap().expect("an instrument");
+    assert!(r.occluded, "{r:?}");
+    assert!(!two.hidden_parts_ready());
+    two.prepare_hidden_parts();
+    assert!(two.hidden_parts_ready());
 }
 
 /// A silhouette that holds what no pose explains (steel pasted where there
