@@ -160,6 +160,27 @@ pub trait AngleEstimator {
     /// The estimator's own faults; the run stops with them.
     fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>>;
 
+    /// [`AngleEstimator::step`] for one of several estimators stepped on
+    /// the same tick (an experiment grid's estimation run): an IBJAE reader
+    /// takes what a reader of the same models already read in this tick's
+    /// frame from `reads` and leaves its own readings there
+    /// ([`kflex_estimate::Ibjae::read_sharing`]), so that the frame is
+    /// segmented, embedded and searched once. The estimate must be
+    /// [`AngleEstimator::step`]'s; the caller clears `reads` before each
+    /// tick. By default, `step`.
+    ///
+    /// # Errors
+    /// As [`AngleEstimator::step`].
+    #[cfg(feature = "estimators")]
+    fn step_sharing(
+        &mut self,
+        tick: &EstimatorTick<'_>,
+        reads: &mut kflex_estimate::FrameReads,
+    ) -> Result<Option<f64>> {
+        let _ = reads;
+        self.step(tick)
+    }
+
     /// Back to the state before the first tick.
     fn reset(&mut self);
 

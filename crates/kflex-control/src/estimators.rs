@@ -11,7 +11,7 @@
 //! KBJAE reads θ_c with the master's rate θ_d': the crate docs say why
 //! ("KBJAE's input in the closed loop").
 
-use kflex_estimate::{Ibjae, IbjaeReading, Kbjae, Lbhjae, LbhjaeEstimate, RgbView};
+use kflex_estimate::{FrameReads, Ibjae, IbjaeReading, Kbjae, Lbhjae, LbhjaeEstimate, RgbView};
 use kflex_model::{Command, Roi};
 
 use crate::closed_loop::{
@@ -112,14 +112,13 @@ impl IbjaeAlone {
     fn bands(&self, translation_mm: f64) -> Vec<usize> {
         self.ibjae.bands_for(self.last, translation_mm)
     }
-}
 
-impl AngleEstimator for IbjaeAlone {
-    fn frame_request(&self, command: Command) -> FrameRequest {
-        request(self.ibjae.window(&self.bands(command.translation_mm)))
-    }
-
-    fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>> {
+    /// A tick, sharing the frame's readings through `reads` where given.
+    fn step_reading(
+        &mut self,
+        tick: &EstimatorTick<'_>,
+        reads: Option<&mut FrameReads>,
+    ) -> Result<Option<f64>> {
         self.read = None;
         let Some(frame) = &tick.frame else {
             return Ok(self.last);
@@ -129,11 +128,33 @@ impl AngleEstimator for IbjaeAlone {
         };
         let mut bands = self.bands(frame.command.translation_mm);
         bands.retain(|&b| window.holds(&self.ibjae.bands()[b].band.roi));
-        if let Some(reading) = self.ibjae.read(&view, &bands)? {
+        let reading = match reads {
+            Some(reads) => self.ibjae.read_sharing(&view, &bands, reads)?,
+            None => self.ibjae.read(&view, &bands)?,
+        };
+        if let Some(reading) = reading {
             self.last = Some(reading.theta_deg);
             self.read = Some(reading);
         }
         Ok(self.last)
+    }
+}
+
+impl AngleEstimator for IbjaeAlone {
+    fn frame_request(&self, command: Command) -> FrameRequest {
+        request(self.ibjae.window(&self.bands(command.translation_mm)))
+    }
+
+    fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>> {
+        self.step_reading(tick, None)
+    }
+
+    fn step_sharing(
+        &mut self,
+        tick: &EstimatorTick<'_>,
+        reads: &mut FrameReads,
+    ) -> Result<Option<f64>> {
+        self.step_reading(tick, Some(reads))
     }
 
     fn reset(&mut self) {
@@ -154,27 +175,15 @@ impl AngleEstimator for Lbhjae {
     }
 
     fn step(&mut self, tick: &EstimatorTick<'_>) -> Result<Option<f64>> {
-        let mut frame_view = None;
-        if let Some(frame) = &tick.frame
-            && let Some(v) = view(frame)?
-        {
-            let needed = self.frame_window(tick.command.translation_mm);
-            if frame
-                .window
-                .zip(needed)
-                .is_some_and(|(have, need)| have.holds(&need))
-            {
-                frame_view = Some(v);
-            }
-        }
-        let estimate = Lbhjae::step_with_rate(
-            self,
-            tick.command,
-            tick.theta_d_rate_deg_per_s,
-            tick.dt_s,
-            frame_view.as_ref(),
-        )?;
-        Ok(Some(estimate.fused.theta_hat_deg))
+        lbhjae_tick(self, tick, None)
+    }
+
+    fn step_sharing(
+        &mut self,
+        tick: &EstimatorTick<'_>,
+        reads: &mut FrameReads,
+    ) -> Result<Option<f64>> {
+        lbhjae_tick(self, tick, Some(reads))
     }
 
     fn reset(&mut self) {
@@ -186,4 +195,35 @@ impl AngleEstimator for Lbhjae {
             .map(|e| lbhjae_details(&e))
             .unwrap_or_default()
     }
+}
+
+/// An LBHJAE tick in the loop: the frame read where its window holds the
+/// window the estimator needs now, sharing its readings through `reads`
+/// where given.
+fn lbhjae_tick(
+    lbhjae: &mut Lbhjae,
+    tick: &EstimatorTick<'_>,
+    reads: Option<&mut FrameReads>,
+) -> Result<Option<f64>> {
+    let mut frame_view = None;
+    if let Some(frame) = &tick.frame
+        && let Some(v) = view(frame)?
+    {
+        let needed = lbhjae.frame_window(tick.command.translation_mm);
+        if frame
+            .window
+            .zip(needed)
+            .is_some_and(|(have, need)| have.holds(&need))
+        {
+            frame_view = Some(v);
+        }
+    }
+    let (command, rate, dt) = (tick.command, tick.theta_d_rate_deg_per_s, tick.dt_s);
+    let estimate = match reads {
+        Some(reads) => {
+            lbhjae.step_with_rate_sharing(command, rate, dt, frame_view.as_ref(), reads)?
+        }
+        None => lbhjae.step_with_rate(command, rate, dt, frame_view.as_ref())?,
+    };
+    Ok(Some(estimate.fused.theta_hat_deg))
 }

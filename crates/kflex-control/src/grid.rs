@@ -666,13 +666,18 @@ impl GridRun<'_> {
 /// Several estimators on one run: every tick goes to each, the camera
 /// renders what the most demanding of them asks for (the union of their
 /// windows), and each one's estimates are kept. The loop's θ̂ is the first
-/// one's (an estimation run has no compensator to use it).
+/// one's (an estimation run has no compensator to use it). Their IBJAE
+/// readers read each band of a frame once between them
+/// ([`AngleEstimator::step_sharing`]).
 struct Fanout {
     members: Vec<Box<dyn AngleEstimator>>,
     /// Each member's estimate after every tick, pre-roll included.
     hats: Vec<Vec<Option<f64>>>,
     /// Each member's details after every tick, pre-roll included.
     details: Vec<Vec<TickDetails>>,
+    /// This tick's IBJAE readings, shared by the members.
+    #[cfg(feature = "estimators")]
+    reads: kflex_estimate::FrameReads,
 }
 
 impl Fanout {
@@ -683,6 +688,8 @@ impl Fanout {
             members,
             hats,
             details,
+            #[cfg(feature = "estimators")]
+            reads: kflex_estimate::FrameReads::new(),
         }
     }
 }
@@ -702,13 +709,19 @@ impl AngleEstimator for Fanout {
     }
 
     fn step(&mut self, tick: &crate::EstimatorTick<'_>) -> Result<Option<f64>> {
+        #[cfg(feature = "estimators")]
+        self.reads.clear();
         for ((m, hats), details) in self
             .members
             .iter_mut()
             .zip(&mut self.hats)
             .zip(&mut self.details)
         {
-            hats.push(m.step(tick)?);
+            #[cfg(feature = "estimators")]
+            let hat = m.step_sharing(tick, &mut self.reads)?;
+            #[cfg(not(feature = "estimators"))]
+            let hat = m.step(tick)?;
+            hats.push(hat);
             details.push(m.details().with_frame(tick.frame.is_some()));
         }
         Ok(self.hats.first().and_then(|h| h.last().copied().flatten()))

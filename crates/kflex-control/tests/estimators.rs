@@ -303,3 +303,124 @@ fn the_details_go_into_the_log() {
     assert_eq!(back, out.details);
     assert!(back.iter().any(|d| d.ibjae_deg.is_some()));
 }
+
+/// An estimator that forwards to `inner` and notes, after each shared
+/// tick, how many readings the run's readers have taken from one another.
+struct CountingTaken {
+    inner: Box<dyn AngleEstimator>,
+    taken: std::sync::Arc<std::sync::atomic::AtomicU64>,
+}
+
+impl AngleEstimator for CountingTaken {
+    fn frame_request(&self, command: kflex_model::Command) -> kflex_control::FrameRequest {
+        self.inner.frame_request(command)
+    }
+    fn step(&mut self, tick: &kflex_control::EstimatorTick<'_>) -> ControlResult<Option<f64>> {
+        self.inner.step(tick)
+    }
+    fn step_sharing(
+        &mut self,
+        tick: &kflex_control::EstimatorTick<'_>,
+        reads: &mut kflex_estimate::FrameReads,
+    ) -> ControlResult<Option<f64>> {
+        let hat = self.inner.step_sharing(tick, reads)?;
+        self.taken
+            .store(reads.taken(), std::sync::atomic::Ordering::Relaxed);
+        Ok(hat)
+    }
+    fn reset(&mut self) {
+        self.inner.reset();
+    }
+    fn details(&self) -> TickDetails {
+        self.inner.details()
+    }
+}
+
+/// The IBJAE readers of an estimation run (IBJAE alone and LBHJAE with
+/// either filter) read each band of a frame once between them, and each
+/// estimates tick for tick what it does alone on the same run.
+#[test]
+fn an_estimation_runs_ibjae_readers_read_each_frame_once_between_them() {
+    use kflex_control::{Case, CaseKind, EstimatorKind, ExperimentGrid, OcclusionCase};
+    use std::sync::atomic::{AtomicU64, Ordering};
+    use std::sync::{Arc, Mutex};
+
+    let taken = Arc::new(AtomicU64::new(0));
+    let make = |kind: EstimatorKind| -> ControlResult<Box<dyn AngleEstimator>> {
+        let kbjae = || Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+        let inner: Box<dyn AngleEstimator> = match kind {
+            EstimatorKind::Ibjae => Box::new(IbjaeAlone::new(ibjae())),
+            EstimatorKind::LbhjaeAdaptive => Box::new(adaptive_lbhjae()),
+            EstimatorKind::Lbhjae => Box::new(Lbhjae::new(
+                kbjae(),
+                ibjae(),
+                Box::new(kflex_estimate::PaperKalman::new(Default::default()).unwrap()),
+            )),
+            other => panic!("{other:?}"),
+        };
+        Ok(Box::new(CountingTaken {
+            inner,
+            taken: Arc::clone(&taken),
+        }))
+    };
+    let mut grid = ExperimentGrid {
+        cases: vec![Case {
+            table: "V".into(),
+            kind: CaseKind::Estimation,
+            sheath_deg: 0.0,
+            occlusion: OcclusionCase::Middle40,
+        }],
+        repeats: 1,
+        ..ExperimentGrid::paper()
+    };
+    grid.scenario.motion = OpenLoopScenario {
+        periods: 0.5,
+        pre_roll_s: 0.5,
+        ..OpenLoopScenario::default()
+    };
+    let readers = [
+        EstimatorKind::Ibjae,
+        EstimatorKind::LbhjaeAdaptive,
+        EstimatorKind::Lbhjae,
+    ];
+    // each run's estimates and frames read, by estimator
+    let estimates = |kinds: &[EstimatorKind]| {
+        let seen = Mutex::new(Vec::new());
+        ExperimentGrid {
+            estimators: kinds.to_vec(),
+            ..grid.clone()
+        }
+        .run_with(1, &make, &|_, _| {}, &|run| {
+            for (i, kind) in run.estimators.iter().enumerate() {
+                let read = run.details[i]
+                    .iter()
+                    .filter(|d| d.ibjae_deg.is_some())
+                    .count();
+                seen.lock()
+                    .unwrap()
+                    .push((*kind, run.estimates[i].to_vec(), read));
+            }
+            Ok(())
+        })
+        .unwrap();
+        seen.into_inner().unwrap()
+    };
+    taken.store(0, Ordering::Relaxed);
+    let together = estimates(&readers);
+    let shared = taken.load(Ordering::Relaxed);
+    let frames_read = together.iter().map(|t| t.2).max().unwrap();
+    assert!(frames_read > 20, "{together:?}");
+    // the two readers after the first take the band the first read, in
+    // nearly every frame (each picks its band from its own estimate)
+    assert!(
+        shared as f64 >= 1.5 * frames_read as f64,
+        "{shared} readings taken over {frames_read} frames read"
+    );
+    let alone: Vec<_> = readers.iter().flat_map(|&k| estimates(&[k])).collect();
+    assert_eq!(together.len(), alone.len());
+    for (t, a) in together.iter().zip(&alone) {
+        assert_eq!(t.0, a.0);
+        assert_eq!(t.1, a.1, "{:?}: shared and alone differ", t.0);
+        assert_eq!(t.2, a.2);
+    }
+}

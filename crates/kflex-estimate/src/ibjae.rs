@@ -589,6 +589,60 @@ pub struct Ibjae {
     crop: Vec<u8>,
     embedding: [f32; EMBEDDING_DIM],
     check: Option<SilhouetteCheck>,
+    /// What tells its readings apart from another reader's, once a shared
+    /// read has needed it ([`Ibjae::read_sharing`]).
+    fingerprint: Option<u64>,
+}
+
+/// IBJAE's readings of one frame, band by band, for several readers of the
+/// same frame ([`Ibjae::read_sharing`]): an experiment grid puts several
+/// estimators on one run, and each IBJAE among them (IBJAE alone, LBHJAE
+/// with either filter) would otherwise segment, embed and search the same
+/// regions of the same frame again. The first reader of a band reads it;
+/// the others, if they are readers of the same models and settings, take
+/// its reading. Clear it before each new frame.
+#[derive(Debug, Clone, Default)]
+pub struct FrameReads {
+    /// The fingerprint of the readers whose readings these are (the first
+    /// to read since the last clear).
+    reader: Option<u64>,
+    /// Each band read in this frame and what it read (`None`: no instrument).
+    reads: Vec<(usize, Option<IbjaeReading>)>,
+    /// Readings taken from here instead of read, since it was made.
+    taken: u64,
+}
+
+impl FrameReads {
+    /// Holds no readings.
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Forgets the readings, for the next frame (the count of readings
+    /// taken stays).
+    pub fn clear(&mut self) {
+        self.reader = None;
+        self.reads.clear();
+    }
+
+    /// How many bands were read in this frame.
+    #[must_use]
+    pub fn bands_read(&self) -> usize {
+        self.reads.len()
+    }
+
+    /// How many readings readers took from here instead of reading them,
+    /// since it was made.
+    #[must_use]
+    pub fn taken(&self) -> u64 {
+        self.taken
+    }
+
+    /// Band `band`'s reading in this frame, if it was read.
+    fn get(&self, band: usize) -> Option<Option<IbjaeReading>> {
+        self.reads.iter().find(|r| r.0 == band).map(|r| r.1)
+    }
 }
 
 impl Ibjae {
@@ -630,6 +684,7 @@ impl Ibjae {
             crop: Vec::with_capacity(largest),
             embedding: [0.0; EMBEDDING_DIM],
             check: None,
+            fingerprint: None,
         })
     }
 
@@ -659,6 +714,7 @@ impl Ibjae {
         for b in &self.bands {
             check_camera(&b.index, &expected, "feature database")?;
         }
+        self.fingerprint = None;
         self.check = Some(SilhouetteCheck {
             camera: *camera,
             instrument: *instrument,
@@ -771,100 +827,196 @@ impl Ibjae {
     /// databases; [`EstimateError::ImageSize`] or a range error for a region
     /// outside the frame; errors of the SCNN and the index.
     pub fn read(&mut self, frame: &RgbView, bands: &[usize]) -> Result<Option<IbjaeReading>> {
+        self.read_from(frame, bands, None)
+    }
+
+    /// [`Ibjae::read`] for one of several readers of the same frame (an
+    /// experiment's estimators sharing one run): a band that a reader of the
+    /// same models and settings already read in this frame is taken from
+    /// `reads`, the others are read and left there. The reading is the one
+    /// [`Ibjae::read`] gives, bit for bit. `reads` must be cleared
+    /// ([`FrameReads::clear`]) before each new frame; a reader of other
+    /// models or settings reads everything itself.
+    ///
+    /// # Errors
+    /// As [`Ibjae::read`].
+    pub fn read_sharing(
+        &mut self,
+        frame: &RgbView,
+        bands: &[usize],
+        reads: &mut FrameReads,
+    ) -> Result<Option<IbjaeReading>> {
+        self.read_from(frame, bands, Some(reads))
+    }
+
+    fn read_from(
+        &mut self,
+        frame: &RgbView,
+        bands: &[usize],
+        mut reads: Option<&mut FrameReads>,
+    ) -> Result<Option<IbjaeReading>> {
+        if let Some(r) = reads.as_deref_mut() {
+            let mine = self.fingerprint();
+            let theirs = *r.reader.get_or_insert(mine);
+            if theirs != mine {
+                reads = None;
+            }
+        }
+        // an explained reading before one with a hidden part, before an
+        // unexplained one; then the nearest
+        let min_iou = self.check.as_ref().map_or(0.0, |c| c.min_iou);
+        let rank = |r: &IbjaeReading| {
+            let class = if r.occluded {
+                1
+            } else if r.silhouette_iou.is_some_and(|iou| iou < min_iou) {
+                2
+            } else {
+                0
+            };
+            (class, r.distance)
+        };
         let mut best: Option<IbjaeReading> = None;
         for &i in bands {
-            let Some(db) = self.bands.get(i) else {
+            if i >= self.bands.len() {
                 let last = self.bands.len().saturating_sub(1);
                 kflex_model::Bounds::closed(0.0, last as f64).check("band", i as f64)?;
                 continue;
-            };
-            let roi = db.band.roi;
-            frame.crop_into(roi, &mut self.crop)?;
-            let segmented = match self.segmenter.segment(
-                &self.crop,
-                roi.width,
-                roi.height,
-                Roi::whole(roi.width, roi.height),
-            ) {
-                Ok(s) => s,
-                Err(EstimateError::NoInstrument { .. }) => continue,
-                Err(e) => return Err(e),
-            };
-            self.scnn.embed(&segmented.small, &mut self.embedding)?;
-            let db = &self.bands[i];
-            let n = db.index.nearest(&self.embedding)?;
-            let distance = f64::from(n.distance());
-            let mut reading = IbjaeReading {
-                theta_deg: n.pose.theta_deg,
-                translation_mm: n.pose.translation_mm,
-                distance,
-                sigma_deg: (distance / db.distance_per_deg).max(0.5 * db.theta_step_deg),
-                band: i,
-                silhouette_iou: None,
-                occluded: false,
-                consistent_deg: None,
-            };
-            if let Some(c) = self.check.as_mut() {
-                // the nominal silhouette of the pose read, as the database
-                // rendered it (build_band_database)
-                c.render(roi, n.pose)?;
-                let iou = segmented.small.iou(&c.mask)?;
-                reading.silhouette_iou = Some(iou);
-                if iou < c.min_iou {
-                    reading.sigma_deg = reading.sigma_deg.max(UNEXPLAINED_SIGMA_DEG);
-                    // taken only where the visible pixels pin the bend
-                    if let Some((e, [lo, hi], iou)) = c.hidden(i, db, &segmented.small)?
-                        && 0.5 * (hi - lo) <= HIDDEN_SIGMA_DEG
-                        && let Some(&pose) = db.index.poses().get(e)
-                    {
-                        let dim = db.index.dim();
-                        let d2: f32 = db
-                            .index
-                            .features()
-                            .get(e * dim..(e + 1) * dim)
-                            .unwrap_or_default()
-                            .iter()
-                            .zip(&self.embedding)
-                            .map(|(a, b)| (a - b) * (a - b))
-                            .sum();
-                        let distance = f64::from(d2.sqrt());
-                        // a pose that explains the silhouette: nothing hidden
-                        let explained = iou >= c.min_iou;
-                        reading = IbjaeReading {
-                            theta_deg: pose.theta_deg,
-                            translation_mm: pose.translation_mm,
-                            distance,
-                            sigma_deg: if explained {
-                                distance / db.distance_per_deg
-                            } else {
-                                HIDDEN_SIGMA_DEG
-                            }
-                            .max(0.5 * db.theta_step_deg),
-                            silhouette_iou: Some(iou),
-                            occluded: !explained,
-                            consistent_deg: (!explained).then_some([lo, hi]),
-                            ..reading
-                        };
-                    }
-                }
             }
-            // an explained reading before one with a hidden part, before an
-            // unexplained one; then the nearest
-            let min_iou = self.check.as_ref().map_or(0.0, |c| c.min_iou);
-            let rank = |r: &IbjaeReading| {
-                let class = if r.occluded {
-                    1
-                } else if r.silhouette_iou.is_some_and(|iou| iou < min_iou) {
-                    2
-                } else {
-                    0
-                };
-                (class, r.distance)
+            let shared = reads.as_deref().and_then(|r| r.get(i));
+            let reading = match shared {
+                Some(reading) => {
+                    if let Some(r) = reads.as_deref_mut() {
+                        r.taken += 1;
+                    }
+                    reading
+                }
+                None => {
+                    let reading = self.read_band(frame, i)?;
+                    if let Some(r) = reads.as_deref_mut() {
+                        r.reads.push((i, reading));
+                    }
+                    reading
+                }
             };
-            if best.is_none_or(|b| rank(&reading) < rank(&b)) {
+            if let Some(reading) = reading
+                && best.is_none_or(|b| rank(&reading) < rank(&b))
+            {
                 best = Some(reading);
             }
         }
         Ok(best)
+    }
+
+    /// What band `i` (an index of `self.bands`) reads from `frame`: `None`
+    /// where its region shows no instrument.
+    fn read_band(&mut self, frame: &RgbView, i: usize) -> Result<Option<IbjaeReading>> {
+        let Some(db) = self.bands.get(i) else {
+            return Ok(None);
+        };
+        let roi = db.band.roi;
+        frame.crop_into(roi, &mut self.crop)?;
+        let segmented = match self.segmenter.segment(
+            &self.crop,
+            roi.width,
+            roi.height,
+            Roi::whole(roi.width, roi.height),
+        ) {
+            Ok(s) => s,
+            Err(EstimateError::NoInstrument { .. }) => return Ok(None),
+            Err(e) => return Err(e),
+        };
+        self.scnn.embed(&segmented.small, &mut self.embedding)?;
+        let db = &self.bands[i];
+        let n = db.index.nearest(&self.embedding)?;
+        let distance = f64::from(n.distance());
+        let mut reading = IbjaeReading {
+            theta_deg: n.pose.theta_deg,
+            translation_mm: n.pose.translation_mm,
+            distance,
+            sigma_deg: (distance / db.distance_per_deg).max(0.5 * db.theta_step_deg),
+            band: i,
+            silhouette_iou: None,
+            occluded: false,
+            consistent_deg: None,
+        };
+        if let Some(c) = self.check.as_mut() {
+            // the nominal silhouette of the pose read, as the database
+            // rendered it (build_band_database)
+            c.render(roi, n.pose)?;
+            let iou = segmented.small.iou(&c.mask)?;
+            reading.silhouette_iou = Some(iou);
+            if iou < c.min_iou {
+                reading.sigma_deg = reading.sigma_deg.max(UNEXPLAINED_SIGMA_DEG);
+                // taken only where the visible pixels pin the bend
+                if let Some((e, [lo, hi], iou)) = c.hidden(i, db, &segmented.small)?
+                    && 0.5 * (hi - lo) <= HIDDEN_SIGMA_DEG
+                    && let Some(&pose) = db.index.poses().get(e)
+                {
+                    let dim = db.index.dim();
+                    let d2: f32 = db
+                        .index
+                        .features()
+                        .get(e * dim..(e + 1) * dim)
+                        .unwrap_or_default()
+                        .iter()
+                        .zip(&self.embedding)
+                        .map(|(a, b)| (a - b) * (a - b))
+                        .sum();
+                    let distance = f64::from(d2.sqrt());
+                    // a pose that explains the silhouette: nothing hidden
+                    let explained = iou >= c.min_iou;
+                    reading = IbjaeReading {
+                        theta_deg: pose.theta_deg,
+                        translation_mm: pose.translation_mm,
+                        distance,
+                        sigma_deg: if explained {
+                            distance / db.distance_per_deg
+                        } else {
+                            HIDDEN_SIGMA_DEG
+                        }
+                        .max(0.5 * db.theta_step_deg),
+                        silhouette_iou: Some(iou),
+                        occluded: !explained,
+                        consistent_deg: (!explained).then_some([lo, hi]),
+                        ..reading
+                    };
+                }
+            }
+        }
+        Ok(Some(reading))
+    }
+
+    /// What tells this reader's readings apart from another's: its SCNN,
+    /// segmentation settings, databases and silhouette check (a hash of
+    /// them, made on the first shared read).
+    fn fingerprint(&mut self) -> u64 {
+        use std::hash::{Hash, Hasher};
+        if let Some(f) = self.fingerprint {
+            return f;
+        }
+        let mut h = std::hash::DefaultHasher::new();
+        self.scnn.sha256().hash(&mut h);
+        format!("{:?}", self.segmenter.params()).hash(&mut h);
+        match &self.check {
+            Some(c) => format!("{:?} {:?} {:?}", c.camera, c.instrument, c.min_iou).hash(&mut h),
+            None => "no check".hash(&mut h),
+        }
+        for b in &self.bands {
+            format!(
+                "{:?} {:?} {:?}",
+                b.band, b.distance_per_deg, b.theta_step_deg
+            )
+            .hash(&mut h);
+            b.index.metadata().hash(&mut h);
+            for f in b.index.features() {
+                f.to_bits().hash(&mut h);
+            }
+            for p in b.index.poses() {
+                (p.theta_deg.to_bits(), p.translation_mm.to_bits()).hash(&mut h);
+            }
+        }
+        let f = h.finish();
+        self.fingerprint = Some(f);
+        f
     }
 }

@@ -5,7 +5,7 @@ use kflex_model::{Command, Roi};
 
 use crate::error::Result;
 use crate::fusion::{Estimate, Fusion, Measurements};
-use crate::ibjae::{Ibjae, IbjaeReading, RgbView};
+use crate::ibjae::{FrameReads, Ibjae, IbjaeReading, RgbView};
 use crate::kbjae::Kbjae;
 
 /// One tick of LBHJAE: the fused estimate and what each estimator read.
@@ -111,7 +111,7 @@ impl Lbhjae {
         dt_s: f64,
         frame: Option<&RgbView>,
     ) -> Result<LbhjaeEstimate> {
-        self.step_inner(command, None, dt_s, frame)
+        self.step_inner(command, None, dt_s, frame, None)
     }
 
     /// [`Lbhjae::step`] with KBJAE's rate input given
@@ -126,7 +126,26 @@ impl Lbhjae {
         dt_s: f64,
         frame: Option<&RgbView>,
     ) -> Result<LbhjaeEstimate> {
-        self.step_inner(command, Some(rate_deg_per_s), dt_s, frame)
+        self.step_inner(command, Some(rate_deg_per_s), dt_s, frame, None)
+    }
+
+    /// [`Lbhjae::step_with_rate`] for one of several estimators reading the
+    /// same frame: IBJAE takes the bands another reader of the same models
+    /// read in it from `reads`, and leaves its own there
+    /// ([`Ibjae::read_sharing`]); the estimate is the one
+    /// [`Lbhjae::step_with_rate`] gives.
+    ///
+    /// # Errors
+    /// As [`Lbhjae::step_with_rate`].
+    pub fn step_with_rate_sharing(
+        &mut self,
+        command: Command,
+        rate_deg_per_s: f64,
+        dt_s: f64,
+        frame: Option<&RgbView>,
+        reads: &mut FrameReads,
+    ) -> Result<LbhjaeEstimate> {
+        self.step_inner(command, Some(rate_deg_per_s), dt_s, frame, Some(reads))
     }
 
     fn step_inner(
@@ -135,6 +154,7 @@ impl Lbhjae {
         rate_deg_per_s: Option<f64>,
         dt_s: f64,
         frame: Option<&RgbView>,
+        reads: Option<&mut FrameReads>,
     ) -> Result<LbhjaeEstimate> {
         // every check before anything moves
         crate::fusion::check_inputs(dt_s, &Measurements::default())?;
@@ -152,7 +172,10 @@ impl Lbhjae {
                 let hint = self.hint();
                 self.ibjae
                     .bands_for_into(hint, command.translation_mm, &mut self.bands);
-                self.ibjae.read(frame, &self.bands)?
+                match reads {
+                    Some(reads) => self.ibjae.read_sharing(frame, &self.bands, reads)?,
+                    None => self.ibjae.read(frame, &self.bands)?,
+                }
             }
             None => None,
         };

@@ -147,8 +147,9 @@ pub use fusion::{
 };
 #[cfg(all(feature = "onnx", feature = "index"))]
 pub use ibjae::{
-    BandDatabase, DEFAULT_MIN_SILHOUETTE_IOU, HIDDEN_SIGMA_DEG, HIDDEN_TOLERANCE_PX, Ibjae,
-    IbjaeReading, MAX_UNEXPLAINED_SHARE, RgbView, UNEXPLAINED_SIGMA_DEG, build_band_database, keys,
+    BandDatabase, DEFAULT_MIN_SILHOUETTE_IOU, FrameReads, HIDDEN_SIGMA_DEG, HIDDEN_TOLERANCE_PX,
+    Ibjae, IbjaeReading, MAX_UNEXPLAINED_SHARE, RgbView, UNEXPLAINED_SIGMA_DEG,
+    build_band_database, keys,
 };
 #[cfg(feature = "index")]
 pub use index::{FeatureIndex, IndexParams, Neighbour, Pose, ProjectionDims, SearchStats};

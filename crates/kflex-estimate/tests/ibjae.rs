@@ -579,3 +579,56 @@ fn pixels_no_pose_explains_are_no_hidden_part() {
         "with steel where no pose reaches: {r:?}"
     );
 }
+
+/// Readers of the same models and settings share a frame's readings band by
+/// band and read what each reads alone; a reader of other settings reads
+/// for itself; a cleared `FrameReads` holds nothing of the last frame.
+#[test]
+fn readers_of_one_frame_share_its_readings_only_with_readers_like_them() {
+    use kflex_estimate::FrameReads;
+    use kflex_model::Occlusion;
+
+    let camera = Camera::default();
+    let (mut first, mut second, mut alone) = (
+        checked_ibjae(&camera),
+        checked_ibjae(&camera),
+        checked_ibjae(&camera),
+    );
+    // no silhouette check: other settings, so other readings
+    let mut unchecked = ibjae(&camera);
+    let mut reads = FrameReads::new();
+    let roi = paper_band(&camera).roi;
+    let mut renderer = SceneRenderer::new();
+    for (k, theta) in [8.0, 27.0, 41.0].into_iter().enumerate() {
+        let shape = Instrument::kflex().shape(theta, 10.0).unwrap();
+        // the last frame taped, so that a hidden part is read and shared too
+        let params = FrameParams {
+            occlusion: (k == 2).then(|| Occlusion::new(0.4, 0.5).within(roi)),
+            ..FrameParams::default()
+        };
+        let f = renderer.render(&camera, &shape, &params).unwrap();
+        let view = RgbView::packed(&f.rgb, f.width, f.height).unwrap();
+        reads.clear();
+        assert_eq!(reads.bands_read(), 0);
+        let before = reads.taken();
+        let a = first.read_sharing(&view, &[0], &mut reads).unwrap();
+        assert_eq!((reads.bands_read(), reads.taken()), (1, before));
+        let b = second.read_sharing(&view, &[0], &mut reads).unwrap();
+        assert_eq!((reads.bands_read(), reads.taken()), (1, before + 1));
+        let own = alone.read(&view, &[0]).unwrap();
+        assert!(own.is_some());
+        assert_eq!(a, own, "θ = {theta}");
+        assert_eq!(b, own, "θ = {theta}");
+        if k == 2 {
+            assert!(own.unwrap().occluded, "{own:?}");
+        }
+        let other = unchecked.read_sharing(&view, &[0], &mut reads).unwrap();
+        assert_eq!(
+            reads.taken(),
+            before + 1,
+            "θ = {theta}: taken by another kind of reader"
+        );
+        assert_eq!(other, unchecked.read(&view, &[0]).unwrap());
+        assert!(other.unwrap().silhouette_iou.is_none());
+    }
+}
