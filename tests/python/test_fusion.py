@@ -87,3 +87,44 @@ def test_the_adaptive_filter_rejects_a_reading_with_a_hidden_part() -> None:
         b = plain.step(0.01, kbjae_deg=20.0, ibjae_deg=26.0, ibjae_sigma_deg=1.0)
     assert a.ibjae == "gated" and abs(a.theta_hat_deg - 20.0) < 0.5, a
     assert b.ibjae == "used" and abs(b.theta_hat_deg - 26.0) < 1.0, b
+
+
+def test_a_run_names_each_readings_use_as_a_step_does_and_takes_hidden_parts() -> None:
+    # the adaptive filter rejects a reading with a hidden part: given as a
+    # series, as run_experiment's details log it, it is gated as a step gates it
+    rng = np.random.default_rng(5)
+    n = 300
+    t = np.arange(n) * 0.01
+    z1 = 25 * np.sin(t) + 25 + rng.normal(0, 1, n)
+    z2 = np.where(np.arange(n) % 3 == 0, 25 * np.sin(t) + 25, np.nan)
+    sigma = np.full(n, 1.0)
+    hidden = np.zeros(n, dtype=bool)
+    hidden[90:120] = True
+    whole = kflex.AdaptiveKalman().run(0.01, z1, z2, sigma, hidden)
+    kf = kflex.AdaptiveKalman()
+    for k in range(n):
+        e = kf.step(
+            0.01,
+            z1[k],
+            None if math.isnan(z2[k]) else float(z2[k]),
+            float(sigma[k]),
+            bool(hidden[k]),
+        )
+        assert whole["theta_hat_deg"][k] == e.theta_hat_deg
+        assert whole["kbjae_use"][k] == e.kbjae
+        assert whole["ibjae_use"][k] == e.ibjae, k
+        np.testing.assert_array_equal(whole["theta_hat_covariance"][k], e.covariance)
+        if e.ibjae_nis is None:
+            assert math.isnan(whole["ibjae_nis"][k])
+        else:
+            assert whole["ibjae_nis"][k] == e.ibjae_nis
+    read = ~np.isnan(z2)
+    assert (whole["ibjae_use"][read & hidden] != "used").all()
+    assert (whole["ibjae_use"][read & ~hidden] == "used").mean() > 0.9
+    assert (whole["ibjae_use"][~read] == "missing").all()
+    assert (whole["ibjae_used"] == (whole["ibjae_use"] == "used")).all()
+    # without the flags every reading is taken as unhidden
+    plain = kflex.AdaptiveKalman().run(0.01, z1, z2, sigma)
+    assert (plain["ibjae_use"][read & hidden] == "used").all()
+    with pytest.raises(TypeError, match="ibjae_occluded"):
+        kflex.AdaptiveKalman().run(0.01, z1, z2, sigma, hidden[:10])

@@ -96,6 +96,7 @@ fn run_series<'py>(
     kbjae_deg: Option<&Bound<'py, PyAny>>,
     ibjae_deg: Option<&Bound<'py, PyAny>>,
     ibjae_sigma_deg: Option<&Bound<'py, PyAny>>,
+    ibjae_occluded: Option<&Bound<'py, PyAny>>,
 ) -> Result<Bound<'py, PyDict>> {
     let n = [kbjae_deg, ibjae_deg]
         .iter()
@@ -108,6 +109,7 @@ fn run_series<'py>(
     let z1 = optional_series("kbjae_deg", kbjae_deg, n)?;
     let z2 = optional_series("ibjae_deg", ibjae_deg, n)?;
     let sg = optional_series("ibjae_sigma_deg", ibjae_sigma_deg, n)?;
+    let hidden = flag_series("ibjae_occluded", ibjae_occluded, n)?;
     let out = py.detach(|| -> Result<Vec<Estimate>> {
         (0..n)
             .map(|k| {
@@ -118,7 +120,7 @@ fn run_series<'py>(
                             kbjae_deg: z1[k],
                             ibjae_deg: z2[k],
                             ibjae_sigma_deg: sg[k],
-                            ibjae_occluded: false,
+                            ibjae_occluded: hidden[k],
                         },
                     )
                     .map_err(Into::into)
@@ -144,7 +146,52 @@ fn run_series<'py>(
         "ibjae_gated",
         flags(|e| matches!(e.ibjae, SensorUse::Gated { .. })),
     )?;
+    // as `run_experiment`'s details name them
+    let covariance: Vec<f64> = out
+        .iter()
+        .flat_map(|e| {
+            let c = e.covariance;
+            [c[0][0], c[0][1], c[1][0], c[1][1]]
+        })
+        .collect();
+    let covariance = numpy::ndarray::Array3::from_shape_vec((n, 2, 2), covariance)
+        .map_err(|e| type_error(e.to_string()))?;
+    d.set_item("theta_hat_covariance", covariance.into_pyarray(py))?;
+    d.set_item(
+        "ibjae_nis",
+        array::column(
+            py,
+            col(|e| match e.ibjae {
+                SensorUse::Gated { nis } => nis,
+                _ => f64::NAN,
+            }),
+        ),
+    )?;
+    let numpy = py.import("numpy")?;
+    let uses = |f: fn(&Estimate) -> SensorUse| -> Result<Bound<'py, PyAny>> {
+        let names: Vec<&str> = out.iter().map(|e| use_name(f(e))).collect();
+        Ok(numpy.call_method1("array", (names, "U7"))?)
+    };
+    d.set_item("kbjae_use", uses(|e| e.kbjae)?)?;
+    d.set_item("ibjae_use", uses(|e| e.ibjae)?)?;
     Ok(d)
+}
+
+/// A series of flags, one per tick (all false where not given).
+fn flag_series(name: &str, obj: Option<&Bound<'_, PyAny>>, n: usize) -> Result<Vec<bool>> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(vec![false; n]);
+    };
+    let v: Vec<bool> = obj
+        .extract()
+        .map_err(|_| type_error(format!("{name}: expected a sequence of bools")))?;
+    if v.len() != n {
+        return Err(type_error(format!(
+            "{name}: expected {n} values (one per tick), got {}",
+            v.len()
+        )));
+    }
+    Ok(v)
 }
 
 macro_rules! fusion_class {
@@ -201,11 +248,18 @@ macro_rules! fusion_class {
 
             /// Whole series in one call, one tick of `dt_s` per element:
             /// arrays of KBJAE's and IBJAE's angles (deg; NaN where a sensor
-            /// has no measurement) and optionally IBJAE's own uncertainty.
-            /// Returns a `dict` of arrays: `theta_hat_deg`,
-            /// `theta_hat_rate_deg_per_s`, `theta_var_deg2`, and the bool
-            /// arrays `kbjae_used`, `ibjae_used`, `ibjae_gated`.
-            #[pyo3(signature = (dt_s, kbjae_deg = None, ibjae_deg = None, ibjae_sigma_deg = None))]
+            /// has no measurement), optionally IBJAE's own uncertainty and
+            /// its hidden-part flags (bools; `run_experiment`'s details
+            /// replay as they were logged). Returns a `dict` of arrays:
+            /// `theta_hat_deg`, `theta_hat_rate_deg_per_s`, `theta_var_deg2`,
+            /// `theta_hat_covariance` (n × 2 × 2), `kbjae_use` and
+            /// `ibjae_use` (strings as `Estimate` names them), `ibjae_nis`
+            /// (NaN where not gated), and the bool shorthands `kbjae_used`,
+            /// `ibjae_used`, `ibjae_gated`.
+            #[pyo3(signature = (
+                dt_s, kbjae_deg = None, ibjae_deg = None, ibjae_sigma_deg = None,
+                ibjae_occluded = None
+            ))]
             fn run<'py>(
                 &mut self,
                 py: Python<'py>,
@@ -213,8 +267,17 @@ macro_rules! fusion_class {
                 kbjae_deg: Option<&Bound<'py, PyAny>>,
                 ibjae_deg: Option<&Bound<'py, PyAny>>,
                 ibjae_sigma_deg: Option<&Bound<'py, PyAny>>,
+                ibjae_occluded: Option<&Bound<'py, PyAny>>,
             ) -> Result<Bound<'py, PyDict>> {
-                run_series(py, &mut self.inner, dt_s, kbjae_deg, ibjae_deg, ibjae_sigma_deg)
+                run_series(
+                    py,
+                    &mut self.inner,
+                    dt_s,
+                    kbjae_deg,
+                    ibjae_deg,
+                    ibjae_sigma_deg,
+                    ibjae_occluded,
+                )
             }
 
             /// The current estimate, without stepping.
