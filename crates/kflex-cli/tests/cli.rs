@@ -1266,6 +1266,11 @@ table = "V"
 kind = "estimation"
 sheath_deg = 0.0
 occlusion = "0%"
+[[cases]]
+table = "V"
+kind = "estimation"
+sheath_deg = 0.0
+occlusion = "40%"
 [scenario.motion]
 periods = 1.0
 "#,
@@ -1285,7 +1290,7 @@ periods = 1.0
             .as_array()
             .unwrap()
             .iter()
-            .find(|r| r["estimator"] == name)
+            .find(|r| r["estimator"] == name && r["occlusion"] == "0%")
             .unwrap()["rmse_deg"]
             .as_f64()
             .unwrap()
@@ -1324,7 +1329,7 @@ periods = 1.0
     // what became of the frames: KBJAE reads none; IBJAE and LBHJAE read
     // the same frames (most of the 188: a random-weight SCNN, no tape), and
     // LBHJAE's filter used or gated each; the log says the same of IBJAE's
-    let row = |name: &str| -> Vec<String> {
+    let columns = |stdout: &str, name: &str| -> Vec<String> {
         let line = stdout
             .lines()
             .find(|l| l.split('|').next().is_some_and(|c| c.trim() == name))
@@ -1336,6 +1341,7 @@ periods = 1.0
             .map(String::from)
             .collect()
     };
+    let row = |name: &str| columns(&stdout, name);
     assert_eq!(row("kbjae"), ["-", "-", "-", "-"], "{stdout}");
     let (ibjae, lbhjae) = (row("ibjae"), row("lbhjae"));
     let read: usize = ibjae[0].parse().unwrap();
@@ -1348,6 +1354,46 @@ periods = 1.0
     assert_eq!(row("as logged")[2..], ["-", "-"], "{stdout}");
     let n = |s: &String| s.parse::<usize>().unwrap();
     assert_eq!(n(&lbhjae[2]) + n(&lbhjae[3]), n(&lbhjae[0]), "{stdout}");
+    // readings with a hidden part: few without tape, as the log has them
+    let clean_hidden = n(&ibjae[1]);
+    assert!(clean_hidden < read / 4, "{stdout}");
+    assert!(
+        n(&row("as logged")[1]).abs_diff(clean_hidden) <= 2,
+        "{stdout}"
+    );
+    // under the middle tape IBJAE reads a hidden part in most frames, the
+    // replay as the log (LBHJAE's IBJAE reads the same frames)
+    let taped = std::fs::read_dir(out_dir.join("runs"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| {
+            p.file_name()
+                .is_some_and(|f| f.to_string_lossy().starts_with("V_0deg_40pct_ibjae_"))
+        })
+        .expect("the taped case's IBJAE log");
+    let out = kflex(&[
+        "replay",
+        taped.to_str().unwrap(),
+        "--models",
+        models,
+        "--estimators",
+        "ibjae,lbhjae",
+    ]);
+    let taped_stdout = stdout_of(&out);
+    let (ibjae, logged) = (
+        columns(&taped_stdout, "ibjae"),
+        columns(&taped_stdout, "as logged"),
+    );
+    let hidden = n(&ibjae[1]);
+    assert!(
+        hidden > n(&ibjae[0]) / 2 && hidden > clean_hidden + 50,
+        "{taped_stdout}"
+    );
+    assert!(n(&logged[1]).abs_diff(hidden) <= 2, "{taped_stdout}");
+    assert!(
+        n(&columns(&taped_stdout, "lbhjae")[1]).abs_diff(hidden) <= 2,
+        "{taped_stdout}"
+    );
     // a log without frames replays, saying camera-based estimators see none
     std::fs::create_dir_all(dir.join("plain")).unwrap();
     run_scenario(
