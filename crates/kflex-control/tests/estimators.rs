@@ -305,10 +305,12 @@ fn the_details_go_into_the_log() {
 }
 
 /// An estimator that forwards to `inner` and notes, after each shared
-/// tick, how many readings the run's readers have taken from one another.
+/// tick, how many readings the run's readers have taken from one another;
+/// with `share` off, it reads every frame itself (plain `step`).
 struct CountingTaken {
     inner: Box<dyn AngleEstimator>,
     taken: std::sync::Arc<std::sync::atomic::AtomicU64>,
+    share: bool,
 }
 
 impl AngleEstimator for CountingTaken {
@@ -323,6 +325,9 @@ impl AngleEstimator for CountingTaken {
         tick: &kflex_control::EstimatorTick<'_>,
         reads: &mut kflex_estimate::FrameReads,
     ) -> ControlResult<Option<f64>> {
+        if !self.share {
+            return self.inner.step(tick);
+        }
         let hat = self.inner.step_sharing(tick, reads)?;
         self.taken
             .store(reads.taken(), std::sync::atomic::Ordering::Relaxed);
@@ -337,30 +342,48 @@ impl AngleEstimator for CountingTaken {
 }
 
 /// The IBJAE readers of an estimation run (IBJAE alone and LBHJAE with
-/// either filter) read each band of a frame once between them, and each
-/// estimates tick for tick what it does alone on the same run.
+/// either filter, each with the silhouette check, under the middle tape)
+/// read each band of a frame once between them, and each estimates tick for
+/// tick what it does on the same run reading every frame itself.
 #[test]
 fn an_estimation_runs_ibjae_readers_read_each_frame_once_between_them() {
     use kflex_control::{Case, CaseKind, EstimatorKind, ExperimentGrid, OcclusionCase};
-    use std::sync::atomic::{AtomicU64, Ordering};
+    use kflex_estimate::{DEFAULT_MIN_SILHOUETTE_IOU, PaperKalman};
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
     use std::sync::{Arc, Mutex};
 
     let taken = Arc::new(AtomicU64::new(0));
+    let share = AtomicBool::new(true);
     let make = |kind: EstimatorKind| -> ControlResult<Box<dyn AngleEstimator>> {
         let kbjae = || Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+        let checked = || {
+            ibjae()
+                .with_silhouette_check(
+                    &Camera::default(),
+                    &Instrument::kflex(),
+                    DEFAULT_MIN_SILHOUETTE_IOU,
+                )
+                .unwrap()
+        };
+        let fusion = |adaptive: bool| -> Box<dyn Fusion + Send> {
+            if adaptive {
+                Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap())
+            } else {
+                Box::new(PaperKalman::new(Default::default()).unwrap())
+            }
+        };
         let inner: Box<dyn AngleEstimator> = match kind {
-            EstimatorKind::Ibjae => Box::new(IbjaeAlone::new(ibjae())),
-            EstimatorKind::LbhjaeAdaptive => Box::new(adaptive_lbhjae()),
-            EstimatorKind::Lbhjae => Box::new(Lbhjae::new(
-                kbjae(),
-                ibjae(),
-                Box::new(kflex_estimate::PaperKalman::new(Default::default()).unwrap()),
-            )),
+            EstimatorKind::Ibjae => Box::new(IbjaeAlone::new(checked())),
+            EstimatorKind::LbhjaeAdaptive => {
+                Box::new(Lbhjae::new(kbjae(), checked(), fusion(true)))
+            }
+            EstimatorKind::Lbhjae => Box::new(Lbhjae::new(kbjae(), checked(), fusion(false))),
             other => panic!("{other:?}"),
         };
         Ok(Box::new(CountingTaken {
             inner,
             taken: Arc::clone(&taken),
+            share: share.load(Ordering::Relaxed),
         }))
     };
     let mut grid = ExperimentGrid {
@@ -396,9 +419,13 @@ fn an_estimation_runs_ibjae_readers_read_each_frame_once_between_them() {
                     .iter()
                     .filter(|d| d.ibjae_deg.is_some())
                     .count();
+                let hidden = run.details[i]
+                    .iter()
+                    .filter(|d| d.ibjae_occluded == Some(true))
+                    .count();
                 seen.lock()
                     .unwrap()
-                    .push((*kind, run.estimates[i].to_vec(), read));
+                    .push((*kind, run.estimates[i].to_vec(), read, hidden));
             }
             Ok(())
         })
@@ -410,17 +437,28 @@ fn an_estimation_runs_ibjae_readers_read_each_frame_once_between_them() {
     let shared = taken.load(Ordering::Relaxed);
     let frames_read = together.iter().map(|t| t.2).max().unwrap();
     assert!(frames_read > 20, "{together:?}");
+    // the tape hides part of the instrument: readings with a hidden part are shared too
+    let hidden = together.iter().map(|t| t.3).max().unwrap();
+    assert!(hidden > frames_read / 2, "{hidden} of {frames_read}");
     // the two readers after the first take the band the first read, in
     // nearly every frame (each picks its band from its own estimate)
     assert!(
         shared as f64 >= 1.5 * frames_read as f64,
         "{shared} readings taken over {frames_read} frames read"
     );
+    // each alone on the same run, and all together without sharing: the
+    // same estimates, and no reading taken
+    share.store(false, Ordering::Relaxed);
+    taken.store(0, Ordering::Relaxed);
     let alone: Vec<_> = readers.iter().flat_map(|&k| estimates(&[k])).collect();
-    assert_eq!(together.len(), alone.len());
-    for (t, a) in together.iter().zip(&alone) {
-        assert_eq!(t.0, a.0);
-        assert_eq!(t.1, a.1, "{:?}: shared and alone differ", t.0);
-        assert_eq!(t.2, a.2);
+    let unshared = estimates(&readers);
+    assert_eq!(taken.load(Ordering::Relaxed), 0);
+    for other in [&alone, &unshared] {
+        assert_eq!(together.len(), other.len());
+        for (t, a) in together.iter().zip(other) {
+            assert_eq!(t.0, a.0);
+            assert_eq!(t.1, a.1, "{:?}: shared and not shared differ", t.0);
+            assert_eq!((t.2, t.3), (a.2, a.3));
+        }
     }
 }

@@ -735,7 +735,9 @@ impl Ibjae {
     /// needs (see "Hidden parts" in the module docs), which a read otherwise
     /// renders the first time a band needs them: 6–18 ms for a band of the
     /// full range, once, in whichever control tick first reads a taped frame
-    /// in it. A controller with a deadline per tick calls this once at
+    /// in it itself (a reading taken from another reader through
+    /// [`Ibjae::read_sharing`] renders nothing). A controller with a
+    /// deadline per tick calls this once at
     /// start-up (about 0.3 s for the 28 bands of the full range), after
     /// which no read renders. Nothing to do without the silhouette check.
     pub fn prepare_hidden_parts(&mut self) {
@@ -986,9 +988,9 @@ impl Ibjae {
         Ok(Some(reading))
     }
 
-    /// What tells this reader's readings apart from another's: its SCNN,
-    /// segmentation settings, databases and silhouette check (a hash of
-    /// them, made on the first shared read).
+    /// What tells this reader's readings apart from another's: its SCNN
+    /// (the model and its threads), segmentation settings, databases and
+    /// silhouette check (a hash of them, made on the first shared read).
     fn fingerprint(&mut self) -> u64 {
         use std::hash::{Hash, Hasher};
         if let Some(f) = self.fingerprint {
@@ -996,6 +998,7 @@ impl Ibjae {
         }
         let mut h = std::hash::DefaultHasher::new();
         self.scnn.sha256().hash(&mut h);
+        self.scnn.threads().hash(&mut h);
         format!("{:?}", self.segmenter.params()).hash(&mut h);
         match &self.check {
             Some(c) => format!("{:?} {:?} {:?}", c.camera, c.instrument, c.min_iou).hash(&mut h),

@@ -200,6 +200,8 @@ pub struct OnnxModel {
     input: TensorSpec,
     output: TensorSpec,
     sha256: String,
+    /// Intra-op threads of its session.
+    threads: usize,
     /// Batch 1 without allocation (the estimators' per-tick call).
     one: BatchOne,
 }
@@ -308,6 +310,7 @@ impl OnnxModel {
             input,
             output,
             sha256,
+            threads: threads.max(1),
             one,
         })
     }
@@ -316,6 +319,13 @@ impl OnnxModel {
     #[must_use]
     pub fn sha256(&self) -> &str {
         &self.sha256
+    }
+
+    /// The intra-op threads its session runs on (ONNX Runtime does not
+    /// promise the same bits for another count).
+    #[must_use]
+    pub fn threads(&self) -> usize {
+        self.threads
     }
 
     /// Runs the model on `batch` items laid out one after the other in

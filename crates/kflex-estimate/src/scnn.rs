@@ -56,6 +56,12 @@ impl Scnn {
         self.model.sha256()
     }
 
+    /// The intra-op threads it was loaded with.
+    #[must_use]
+    pub fn threads(&self) -> usize {
+        self.model.threads()
+    }
+
     /// Embeds one 48×48 silhouette into `out`.
     ///
     /// # Errors

@@ -632,3 +632,56 @@ fn readers_of_one_frame_share_its_readings_only_with_readers_like_them() {
         assert!(other.unwrap().silhouette_iou.is_none());
     }
 }
+
+/// With two bands, readers asking for different and overlapping bands take
+/// the bands already read and read the others, and each reads what it
+/// reads alone: the best of its bands, whether taken or its own.
+#[test]
+fn readers_of_several_bands_take_the_ones_read_and_read_the_rest() {
+    use kflex_estimate::FrameReads;
+
+    let camera = Camera::default();
+    let two_bands = || {
+        let mut scnn = Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
+        let mut band = |lo: f64, hi: f64| {
+            let band = kflex_model::WorkingBand {
+                poses: kflex_model::PoseRange {
+                    theta_deg: [lo, hi],
+                    ..paper_band(&camera).poses
+                },
+                ..paper_band(&camera)
+            };
+            build_band_database(&mut scnn, &camera, &Instrument::kflex(), &band, 1.0, 1.0).unwrap()
+        };
+        let dbs = vec![band(0.0, 30.0), band(31.0, 50.0)];
+        Ibjae::new(scnn, SegmentParams::default(), dbs)
+            .unwrap()
+            .with_silhouette_check(&camera, &Instrument::kflex(), DEFAULT_MIN_SILHOUETTE_IOU)
+            .unwrap()
+    };
+    let (mut first, mut second, mut third, mut alone) =
+        (two_bands(), two_bands(), two_bands(), two_bands());
+    let shape = Instrument::kflex().shape(29.0, 10.0).unwrap();
+    let f = SceneRenderer::new()
+        .render(&camera, &shape, &FrameParams::default())
+        .unwrap();
+    let view = RgbView::packed(&f.rgb, f.width, f.height).unwrap();
+    let mut reads = FrameReads::new();
+    // the first reads band 1 only
+    let a = first.read_sharing(&view, &[1], &mut reads).unwrap();
+    assert_eq!((reads.bands_read(), reads.taken()), (1, 0));
+    // the second asks for both: takes band 1, reads band 0
+    let b = second.read_sharing(&view, &[0, 1], &mut reads).unwrap();
+    assert_eq!((reads.bands_read(), reads.taken()), (2, 1));
+    // the third asks for both the other way round: takes both
+    let c = third.read_sharing(&view, &[1, 0], &mut reads).unwrap();
+    assert_eq!((reads.bands_read(), reads.taken()), (2, 3));
+    assert_eq!(a, alone.read(&view, &[1]).unwrap());
+    let both = alone.read(&view, &[0, 1]).unwrap();
+    assert_eq!(b, both);
+    assert_eq!(c, alone.read(&view, &[1, 0]).unwrap());
+    // the two bands read differently, and the best of them is band 0's
+    let own0 = alone.read(&view, &[0]).unwrap().unwrap();
+    assert_ne!(Some(own0), a);
+    assert_eq!(both.unwrap().band, 0, "{both:?}");
+}
