@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use kflex_estimate::{Scnn, build_databases, save_databases};
+use kflex_estimate::{Scnn, build_databases, check_database_dir, save_databases};
 use kflex_model::{Camera, Instrument, WorkingRegions};
 
 #[derive(Debug, Args)]
@@ -32,6 +32,8 @@ pub struct BuildDbArgs {
 
 pub fn build_db(args: &BuildDbArgs) -> Result<()> {
     let start = Instant::now();
+    // where the databases go, checked before the minutes of work
+    check_database_dir(&args.out).with_context(|| format!("--out {}", args.out.display()))?;
     let mut scnn = Scnn::load(&args.scnn, args.threads.max(1)).with_context(|| {
         format!(
             "loading the SCNN {} (kflex's trained SCNN will ship as {}/scnn.onnx)",

@@ -120,13 +120,44 @@ pub fn run(
     if let Some(dir) = out {
         check_writable(dir)?;
     }
+    if let Some(r) = only.repeats
+        && !(1..=1000).contains(&r)
+    {
+        bail!("--repeats {r}: a scenario runs 1 to 1000 repeats");
+    }
     let mut grid = load(path)?;
+    let file = (grid.seed, grid.repeats, grid.estimators.clone());
     only.apply(&mut grid)?;
     if quick {
         grid = grid.quick();
+        // an explicit --repeats stands against --quick's one
+        if let Some(r) = only.repeats {
+            grid.repeats = r;
+        }
     }
     if let Some(names) = estimators {
         grid.estimators = names.iter().map(|n| estimator(n)).collect::<Result<_>>()?;
+    }
+    // what the flags replaced in the file, said in the header
+    let names = |e: &[kflex_control::EstimatorKind]| {
+        e.iter().map(|k| k.name()).collect::<Vec<_>>().join(",")
+    };
+    let mut notes = Vec::new();
+    if only.seed.is_some() && grid.seed != file.0 {
+        notes.push(format!("--seed {} overrides seed = {}", grid.seed, file.0));
+    }
+    if only.repeats.is_some() && grid.repeats != file.1 {
+        notes.push(format!(
+            "--repeats {} overrides repeats = {}",
+            grid.repeats, file.1
+        ));
+    }
+    if estimators.is_some() && grid.estimators != file.2 {
+        notes.push(format!(
+            "--estimators {} overrides estimators = [{}]",
+            names(&grid.estimators),
+            names(&file.2)
+        ));
     }
     // frames are kept only for the logs
     grid.scenario.record_frames = logs_wanted && (mcap_frames || grid.scenario.record_frames);
@@ -138,6 +169,22 @@ pub fn run(
          --estimators none",
     )?;
     let total_cases = grid.cases.len();
+    // one thread a job at most, as the grid has them: an estimation case is
+    // one job (its estimators share each run), a compensation case one a
+    // estimator
+    let estimating = grid
+        .estimators
+        .iter()
+        .any(|&e| e != kflex_control::EstimatorKind::None);
+    let job_count: usize = grid
+        .cases
+        .iter()
+        .map(|c| match c.kind {
+            kflex_control::CaseKind::Estimation => usize::from(estimating),
+            kflex_control::CaseKind::Compensation => grid.estimators.len(),
+        })
+        .sum();
+    let jobs = jobs.min(job_count.max(1));
     println!(
         "kflex run — scenario {}{} ({total_cases} case{}, estimators {}, {} repeat{}, seeds {}.., {} period{} of the input, {jobs} thread{})",
         path.display(),
@@ -159,6 +206,9 @@ pub fn run(
         },
         if jobs == 1 { "" } else { "s" },
     );
+    for note in &notes {
+        println!("note: {note} from {}", path.display());
+    }
     // a bar on a terminal, nothing where stderr is a file or a pipe
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(

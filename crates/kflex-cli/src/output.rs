@@ -58,7 +58,11 @@ pub(crate) fn write_atomic(dir: &Path, name: &str, contents: &str) -> Result<Pat
 pub(crate) fn write_atomic_bytes(dir: &Path, name: &str, contents: &[u8]) -> Result<PathBuf> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let path = dir.join(name);
-    let tmp = dir.join(format!(".{name}.tmp"));
+    // a name of this process's and this call's own: two runs writing into
+    // one directory never write into each other's temporary file
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = dir.join(format!(".{name}.{}-{call}.tmp", std::process::id()));
     let write = || -> std::io::Result<()> {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(contents)?;

@@ -54,6 +54,7 @@ pub struct RenderArgs {
 }
 
 pub fn render(args: &RenderArgs) -> Result<()> {
+    crate::output::check_writable(&args.out)?;
     let background: Background = args.background.parse()?;
     let tissue: Tissue = args.tissue.parse()?;
     let intrinsics = if args.hd {
@@ -63,6 +64,10 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     };
     let camera = Camera::default().with_intrinsics(intrinsics);
     let shape = Instrument::kflex().shape(args.theta, args.d)?;
+    // the position is checked even without tape (FrameParams checks it with tape)
+    kflex_model::Bounds::closed(0.0, 1.0)
+        .check("occlusion_position", args.occlusion_position)
+        .context("--occlusion-position")?;
     let occlusion =
         (args.occlusion != 0.0).then_some(Occlusion::new(args.occlusion, args.occlusion_position));
     let params = FrameParams {

@@ -275,6 +275,13 @@ pub fn run(args: &RunArgs) -> Result<()> {
         Some(path) => {
             let file = config::load(path)?;
             let notes = args.override_notes(path, &file);
+            // the file's values that stay, checked now and blamed on the
+            // file (the ones the flags replace are not checked)
+            let mut kept = file.config;
+            kept.sheath_deg = 0.0;
+            kept.noise = None;
+            kept.validate()
+                .with_context(|| format!("{}: the plant configuration", path.display()))?;
             (file.config, notes)
         }
         None => (PlantConfig::default(), Vec::new()),

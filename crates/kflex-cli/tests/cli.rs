@@ -102,9 +102,14 @@ fn run_writes_results_with_the_agreed_fields() {
         rmse.windows(2).all(|w| w[1] > w[0]),
         "uncompensated error grows with the sheath bend: {rmse:?}"
     );
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
     assert!(
-        !dir.join(".results.json.tmp").exists(),
-        "no temporary file left behind"
+        leftovers.is_empty(),
+        "temporary files left behind: {leftovers:?}"
     );
 }
 
@@ -254,9 +259,21 @@ fn render_writes_the_pngs_and_rejects_bad_input() {
             vec!["render", "--occlusion", "1.5", "--out", d],
             "occlusion.fraction",
         ),
+        // checked without tape too
+        (
+            vec!["render", "--occlusion-position", "2", "--out", d],
+            "--occlusion-position",
+        ),
     ] {
         assert_refused(&args, needle);
     }
+    // an --out that cannot be written fails before the rendering
+    let file = dir.join("frame.png");
+    let under = file.join("out");
+    assert_refused(
+        &["render", "--out", under.to_str().unwrap()],
+        "cannot be written (checked before running)",
+    );
 }
 
 /// A short run: one period, one repeat, one sheath angle, plus `args`.
@@ -417,6 +434,23 @@ fn flags_that_override_the_config_file_say_so() {
     std::fs::write(&config, "[geometry]\nn_segments = 2\n").unwrap();
     let stdout = stdout_of(&short_run(&["--config", config.to_str().unwrap()]));
     assert!(!stdout.contains("note:"), "{stdout}");
+    // a value a flag replaces is not checked (nor blamed on the flag); one
+    // that stays is, naming the file
+    let config = dir.join("replaced.toml");
+    std::fs::write(&config, "sheath_deg = 5000\n[noise]\ntheta_std_deg = -1\n").unwrap();
+    let path = config.to_str().unwrap();
+    let stdout = stdout_of(&short_run(&["--config", path]));
+    assert!(
+        stdout.contains(&format!(
+            "note: --sheath 0 overrides sheath_deg = 5000 from {path}"
+        )),
+        "{stdout}"
+    );
+    let config = dir.join("kept.toml");
+    std::fs::write(&config, "[sheath]\nfriction_coefficient = 5.0\n").unwrap();
+    let path = config.to_str().unwrap();
+    assert_refused(&["run", "--config", path], path);
+    assert_refused(&["run", "--config", path], "friction_coefficient");
 }
 
 #[test]
@@ -880,7 +914,58 @@ fn build_db_refuses_a_missing_model_and_bad_steps() {
         &["build-db", "--scnn", scnn, "--out", out, "--d-step", "-1"],
         "translation_step_mm",
     );
+    // a step so fine the grid would not fit in memory, named
+    assert_refused(
+        &[
+            "build-db",
+            "--scnn",
+            scnn,
+            "--out",
+            out,
+            "--theta-step",
+            "1e-9",
+        ],
+        "--theta-step 0.000000001",
+    );
+    assert_refused(
+        &[
+            "build-db",
+            "--scnn",
+            scnn,
+            "--out",
+            out,
+            "--theta-step",
+            "1e-300",
+        ],
+        "poses in the band's grid",
+    );
     assert!(!Path::new(out).exists());
+    // an --out that cannot take the databases is refused before any work
+    // (the model is not even loaded)
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("a-file");
+    std::fs::write(&file, "").unwrap();
+    assert_refused(
+        &[
+            "build-db",
+            "--scnn",
+            "/nonexistent/scnn.onnx",
+            "--out",
+            file.to_str().unwrap(),
+        ],
+        "not a directory",
+    );
+    let under = file.join("db");
+    assert_refused(
+        &[
+            "build-db",
+            "--scnn",
+            "/nonexistent/scnn.onnx",
+            "--out",
+            under.to_str().unwrap(),
+        ],
+        "--out",
+    );
 }
 
 #[test]
@@ -916,6 +1001,56 @@ fn quick_runs_each_tables_first_and_last_case_once() {
             "X 270.0 40%",
             "X 270.0 40% distal",
         ]
+    );
+}
+
+#[test]
+fn flags_that_replace_a_scenarios_settings_say_so_and_stand_against_quick() {
+    let dir = scratch("scenario-flags");
+    let scenario =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenarios/table_ix.toml");
+    let scenario = scenario.to_str().unwrap();
+    let out = run_scenario(
+        scenario,
+        &[
+            "--estimators",
+            "none",
+            "--quick",
+            "--repeats",
+            "2",
+            "--seed",
+            "5",
+            "--jobs",
+            "64",
+        ],
+        dir.to_str().unwrap(),
+    );
+    let stdout = stdout_of(&out);
+    for note in [
+        format!("note: --seed 5 overrides seed = 2020 from {scenario}"),
+        format!("note: --repeats 2 overrides repeats = 3 from {scenario}"),
+        "note: --estimators none overrides estimators = [".to_string(),
+        // one thread a job: table IX's first and last case, "none" alone
+        "2 repeats, seeds 5.., 1 period of the input, 2 threads)".to_string(),
+    ] {
+        assert!(stdout.contains(&note), "{note}:\n{stdout}");
+    }
+    let text = std::fs::read_to_string(dir.join("results.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let records = json["records"].as_array().unwrap();
+    assert_eq!(records.len(), 2);
+    assert!(records.iter().all(|r| r["repeats"] == 2), "{records:?}");
+    assert_refused(
+        &[
+            "run",
+            "--scenario",
+            scenario,
+            "--estimators",
+            "none",
+            "--repeats",
+            "0",
+        ],
+        "--repeats 0",
     );
 }
 

@@ -306,10 +306,13 @@ impl OpenLoopGrid {
             .collect();
         let mut runs = Vec::with_capacity(seeds.len());
         for &seed in &seeds {
-            let mut config = self.plant.perturbed(seed, self.spread)?;
-            config.sheath_deg = sheath_deg;
-            config.noise = self.noise;
-            config.seed = seed;
+            // the grid's sheath, noise and seed replace the plant's before
+            // anything checks it: a value they replace is never at fault
+            let mut base = self.plant;
+            base.sheath_deg = sheath_deg;
+            base.noise = self.noise;
+            base.seed = seed;
+            let config = base.perturbed(seed, self.spread)?;
             let mut plant = Plant::new(config)?;
             runs.push(self.scenario.run(&mut plant)?.metrics()?);
         }

@@ -75,6 +75,31 @@ pub fn save_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
     if bands.is_empty() {
         return Err(EstimateError::EmptyIndex);
     }
+    write_databases(dir, bands)
+}
+
+/// Whether [`save_databases`] could write into `dir`, asked before the work
+/// that makes the databases: `dir` passes its checks, and the directory
+/// beside it that the new databases are first written into can be made
+/// (it is removed again).
+///
+/// # Errors
+/// As [`save_databases`] for `dir` and for making that directory.
+pub fn check_database_dir(dir: &Path) -> Result<()> {
+    let (fresh, _) = swap_names(dir)?;
+    if let Some(p) = dir.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(p).map_err(|e| EstimateError::io(p, &e))?;
+    }
+    let _ = std::fs::remove_dir_all(&fresh);
+    std::fs::create_dir(&fresh).map_err(|e| EstimateError::io(&fresh, &e))?;
+    let _ = std::fs::remove_dir_all(&fresh);
+    Ok(())
+}
+
+/// The directories beside `dir` that [`save_databases`] writes the new
+/// databases into and moves the old ones to, after checking `dir` can be
+/// swapped whole.
+fn swap_names(dir: &Path) -> Result<(PathBuf, PathBuf)> {
     let refuse = |message: &str| EstimateError::Io {
         path: dir.to_path_buf(),
         kind: std::io::ErrorKind::InvalidInput,
@@ -94,7 +119,12 @@ pub fn save_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
         let n = format!(".{name}.{tag}-{}", std::process::id());
         parent.map_or_else(|| PathBuf::from(&n), |p| p.join(&n))
     };
-    let (fresh, old) = (sibling("new"), sibling("old"));
+    Ok((sibling("new"), sibling("old")))
+}
+
+fn write_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
+    let (fresh, old) = swap_names(dir)?;
+    let parent = dir.parent().filter(|p| !p.as_os_str().is_empty());
     fn io(path: &Path) -> impl Fn(std::io::Error) -> EstimateError + '_ {
         move |e| EstimateError::io(path, &e)
     }

@@ -464,6 +464,10 @@ impl BandDatabase {
     }
 }
 
+/// The most poses a band's grid may hold ([`build_band_database`]): a band
+/// of the full range at 0.1° and 0.1 mm holds some 25,000.
+pub const MAX_BAND_POSES: usize = 200_000;
+
 /// Renders, embeds and indexes the nominal instrument's silhouettes over one
 /// band: θ from the band's lower to its upper bend every `theta_step_deg`,
 /// d likewise every `translation_step_mm`, each a 48×48 silhouette of the
@@ -471,7 +475,8 @@ impl BandDatabase {
 ///
 /// # Errors
 /// [`EstimateError::OutOfRange`] for steps outside `(0, 90]` deg and
-/// `(0, 100]` mm; errors of the renderer, the SCNN and the index.
+/// `(0, 100]` mm, or so fine that the grid would hold more than
+/// [`MAX_BAND_POSES`] poses; errors of the renderer, the SCNN and the index.
 pub fn build_band_database(
     scnn: &mut Scnn,
     camera: &Camera,
@@ -485,11 +490,18 @@ pub fn build_band_database(
         .check("translation_step_mm", translation_step_mm)?;
     let [t0, t1] = band.poses.theta_deg;
     let [d0, d1] = band.poses.translation_mm;
-    let steps = |lo: f64, hi: f64, step: f64| ((hi - lo) / step + 1e-9).floor() as usize + 1;
+    // counted in f64 first: a step far below the band's span would
+    // otherwise ask for more poses than memory holds
+    let steps = |lo: f64, hi: f64, step: f64| ((hi - lo) / step + 1e-9).floor() + 1.0;
     let (nt, nd) = (
         steps(t0, t1, theta_step_deg),
         steps(d0, d1, translation_step_mm),
     );
+    kflex_model::Bounds::closed(1.0, MAX_BAND_POSES as f64).check(
+        "poses in the band's grid (theta and translation steps)",
+        nt * nd,
+    )?;
+    let (nt, nd) = (nt as usize, nd as usize);
     let small = silhouette_camera(camera, band.roi)?;
     let mut raster = Rasterizer::new();
     let mut poses = Vec::with_capacity(nt * nd);

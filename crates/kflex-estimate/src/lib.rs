@@ -138,7 +138,8 @@ mod segment;
 
 #[cfg(all(feature = "onnx", feature = "index"))]
 pub use database::{
-    DATABASE_EXT, MANIFEST, build_databases, database_file, load_databases, save_databases,
+    DATABASE_EXT, MANIFEST, build_databases, check_database_dir, database_file, load_databases,
+    save_databases,
 };
 pub use error::{EstimateError, Result};
 pub use fusion::{
@@ -148,7 +149,7 @@ pub use fusion::{
 #[cfg(all(feature = "onnx", feature = "index"))]
 pub use ibjae::{
     BandDatabase, DEFAULT_MIN_SILHOUETTE_IOU, FrameReads, HIDDEN_SIGMA_DEG, HIDDEN_TOLERANCE_PX,
-    Ibjae, IbjaeReading, MAX_UNEXPLAINED_SHARE, RgbView, UNEXPLAINED_SIGMA_DEG,
+    Ibjae, IbjaeReading, MAX_BAND_POSES, MAX_UNEXPLAINED_SHARE, RgbView, UNEXPLAINED_SIGMA_DEG,
     build_band_database, keys,
 };
 #[cfg(feature = "index")]
