@@ -643,6 +643,9 @@ impl ClosedLoopScenario {
         self.tolerances.validate()?;
         if let Some(c) = &self.compensator {
             c.validate()?;
+            // the compensator steps at most a second at a time
+            // (`Compensator::step`), and would otherwise hold every tick
+            Bounds::open_closed(0.0, 1.0).check("dt_s", self.motion.dt_s)?;
         }
         Ok(sampler)
     }
@@ -785,7 +788,7 @@ impl ClosedLoopScenario {
         let dt = motion.dt_s;
         for f in frames {
             let (w, h) = (f.window.width, f.window.height);
-            if f.rgb.len() as u64 != 3 * u64::from(w) * u64::from(h) {
+            if f.rgb.len() as u128 != 3 * u128::from(w) * u128::from(h) {
                 return Err(crate::ControlError::Worker {
                     message: format!(
                         "a recorded frame of {} bytes does not fill its {w}×{h} window",

@@ -313,7 +313,42 @@ impl ClosedLoopTrace {
         estimate: &[Option<f64>],
         details: &[TickDetails],
     ) -> Result<()> {
-        let tmp = path.with_extension("mcap.tmp");
+        // every series as long as the ticks (the fields are public, and a
+        // trace may come from JSON): nothing is written otherwise
+        let t = &self.trace;
+        let n = t.time_s.len();
+        let lengths = [
+            t.theta_d_deg.len(),
+            t.theta_d_rate_deg_per_s.len(),
+            t.theta_a_deg.len(),
+            t.theta_a_measured_deg.len(),
+            self.theta_c_deg.len(),
+        ];
+        if let Some(&bad) = lengths.iter().find(|&&l| l != n) {
+            return Err(log_error(
+                path,
+                format!("the trace's series are not all {n} ticks long (one has {bad})"),
+            ));
+        }
+        for f in &self.camera_frames {
+            let (w, h) = (f.window.width, f.window.height);
+            if w > kflex_model::MAX_IMAGE_SIDE
+                || h > kflex_model::MAX_IMAGE_SIDE
+                || f.rgb.len() as u128 != 3 * u128::from(w) * u128::from(h)
+            {
+                return Err(log_error(
+                    path,
+                    format!(
+                        "a frame of {} bytes does not fill its {w}×{h} window",
+                        f.rgb.len()
+                    ),
+                ));
+            }
+        }
+        // a name of this process's and this call's own beside the log
+        static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let tmp = path.with_extension(format!("mcap.{}-{call}.tmp", std::process::id()));
         let written = self.write_mcap_to(&tmp, scenario, seed, estimate, details);
         match written.and_then(|()| std::fs::rename(&tmp, path).map_err(|e| log_error(path, e))) {
             Ok(()) => Ok(()),
@@ -574,7 +609,7 @@ pub fn read_mcap(path: &Path) -> Result<RecordedLog> {
         if image.encoding != "rgb8"
             || image
                 .step
-                .is_some_and(|s| u64::from(s) != 3 * u64::from(image.width))
+                .is_some_and(|s| u128::from(s) != 3 * u128::from(image.width))
         {
             return Err(log_error(
                 path,
@@ -585,7 +620,7 @@ pub fn read_mcap(path: &Path) -> Result<RecordedLog> {
             ));
         }
         let rgb = base64_decode(&image.data)
-            .filter(|d| d.len() as u64 == 3 * u64::from(image.width) * u64::from(image.height))
+            .filter(|d| d.len() as u128 == 3 * u128::from(image.width) * u128::from(image.height))
             .ok_or_else(|| {
                 log_error(
                     path,

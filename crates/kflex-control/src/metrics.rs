@@ -88,7 +88,8 @@ pub fn loop_width(desired: &[f64], rate: &[f64], actual: &[f64]) -> Result<f64> 
     let (lo, hi) = desired
         .iter()
         .fold((f64::MAX, f64::MIN), |(lo, hi), &d| (lo.min(d), hi.max(d)));
-    let bins = (((hi - lo) / LOOP_BIN_DEG).floor() as usize + 1).min(100_000);
+    // counted in f64 first: a span of 1e19 deg must not wrap the count
+    let bins = ((hi - lo) / LOOP_BIN_DEG).floor().clamp(0.0, 99_999.0) as usize + 1;
     // (sum, count) for rising and falling in each bin
     let mut rising = vec![(0.0f64, 0u32); bins];
     let mut falling = vec![(0.0f64, 0u32); bins];
@@ -215,6 +216,15 @@ mod tests {
 
     #[test]
     fn bad_inputs_are_errors() {
+        // a span too wide to count its bins is an error, not a panic (no
+        // bin has both branches here)
+        assert!(matches!(
+            loop_width(&[0.0, 2e19], &[1.0, -1.0], &[0.0, 0.0]),
+            Err(ControlError::NotEnoughData {
+                metric: "loop_width",
+                ..
+            })
+        ));
         assert!(matches!(
             rmse(&[], &[]),
             Err(ControlError::NotEnoughData {

@@ -284,6 +284,47 @@ fn bad_settings_are_named_before_the_plant_moves() {
             .map(|r| r.name),
         Some("sigma_deg")
     );
+    // a pre-roll of more ticks than any run is refused before anything is
+    // sized by it; a compensator that would hold every tick, too
+    let motion = OpenLoopScenario {
+        periods: 1e-8,
+        period_s: 1.0,
+        dt_s: 1e-15,
+        pre_roll_s: 9999.0,
+        ..OpenLoopScenario::default()
+    };
+    for (scenario, name) in [
+        (
+            ClosedLoopScenario {
+                motion: motion.clone(),
+                ..ClosedLoopScenario::default()
+            },
+            "2 * pre_roll_s / dt_s",
+        ),
+        (
+            ClosedLoopScenario {
+                motion: OpenLoopScenario {
+                    dt_s: 2.0,
+                    ..OpenLoopScenario::default()
+                },
+                compensator: Some(Default::default()),
+                ..ClosedLoopScenario::default()
+            },
+            "dt_s",
+        ),
+    ] {
+        let mut p = plant(0.0);
+        let mut estimator = NoisyTruth::new(1.0, 1).unwrap();
+        let err = scenario.run(&mut p, &mut estimator, 1).unwrap_err();
+        assert_eq!(err.range().map(|r| r.name), Some(name), "{err}");
+        assert_eq!(p.state().time_s, 0.0);
+    }
+    let err = motion.run(&mut plant(0.0)).unwrap_err();
+    assert_eq!(
+        err.range().map(|r| r.name),
+        Some("2 * pre_roll_s / dt_s"),
+        "{err}"
+    );
     // a scenario file with an unknown field is refused, naming it
     let err = serde_json::from_str::<ClosedLoopScenario>(r#"{"camera": {"fps": 30}}"#)
         .unwrap_err()

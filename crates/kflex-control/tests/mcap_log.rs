@@ -34,7 +34,19 @@ fn the_log_holds_every_tick_and_the_scenario() {
     let dir = temp_dir("ok");
     let path = dir.join("run.mcap");
     trace.write_mcap(&path, &scenario, 17).unwrap();
-    assert!(!path.with_extension("mcap.tmp").exists());
+    let temporary = |dir: &std::path::Path| {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .filter(|e| {
+                e.as_ref()
+                    .unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .ends_with(".tmp")
+            })
+            .count()
+    };
+    assert_eq!(temporary(&dir), 0);
     let bytes = std::fs::read(&path).unwrap();
     let expected: Vec<JointState> = trace.joint_states().collect();
     assert_eq!(expected.len(), trace.trace.time_s.len());
@@ -128,12 +140,38 @@ fn an_unwritable_log_is_an_error_naming_it_and_leaves_nothing() {
     let e = trace.write_mcap(&path, &scenario, 1).unwrap_err();
     assert!(e.to_string().contains("missing"), "{e}");
     assert!(!path.exists());
-    // an existing log is left as it was when a new one cannot be written
+    // an existing log is left as it was when a new one cannot be written:
+    // a trace whose series disagree in length (its fields are public), or
+    // a frame that does not fill its window, is refused before writing
     let good = dir.join("run.mcap");
     std::fs::write(&good, b"old").unwrap();
-    std::fs::create_dir(dir.join("run.mcap.tmp")).unwrap();
-    assert!(trace.write_mcap(&good, &scenario, 1).is_err());
+    let mut short = trace.clone();
+    short.theta_c_deg.pop();
+    let e = short.write_mcap(&good, &scenario, 1).unwrap_err();
+    assert!(e.to_string().contains("ticks long"), "{e}");
     assert_eq!(std::fs::read(&good).unwrap(), b"old");
+    let mut torn = trace.clone();
+    torn.camera_frames.push(kflex_control::RecordedFrame {
+        window: kflex_model::Roi {
+            x0: 0,
+            y0: 0,
+            width: u32::MAX,
+            height: u32::MAX,
+        },
+        rgb: vec![0; 26],
+        captured_s: 0.0,
+        arrives_s: 0.0,
+        command: kflex_model::Command {
+            theta_c_deg: 0.0,
+            translation_mm: 10.0,
+        },
+        truth_theta_a_deg: 0.0,
+    });
+    let e = torn.write_mcap(&good, &scenario, 1).unwrap_err();
+    assert!(e.to_string().contains("does not fill"), "{e}");
+    assert_eq!(std::fs::read(&good).unwrap(), b"old");
+    let entries = std::fs::read_dir(&dir).unwrap().count();
+    assert_eq!(entries, 1, "nothing but the old log");
     std::fs::remove_dir_all(dir).unwrap();
 }
 

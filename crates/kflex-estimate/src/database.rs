@@ -189,6 +189,10 @@ fn write_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
     Ok(())
 }
 
+/// The most band databases a directory may hold ([`load_databases`]; the
+/// full range has 28).
+pub const MAX_BANDS: usize = 10_000;
+
 /// Reads the databases of `dir` (as many as its [`MANIFEST`] counts,
 /// `band-000.kfdb`, …), each checked against `camera`: a database rendered
 /// through another camera (intrinsics, lens or mounting) would answer for
@@ -197,7 +201,7 @@ fn write_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
 /// # Errors
 /// [`EstimateError::Io`] when the manifest or a band's file is missing (kind
 /// `NotFound`) or cannot be read; [`EstimateError::ModelFile`] for a
-/// manifest that is not a count; as [`FeatureIndex::load`] and
+/// manifest that is not a count of 1 to [`MAX_BANDS`]; as [`FeatureIndex::load`] and
 /// [`BandDatabase::from_index`] for a damaged file;
 /// [`EstimateError::ModelMismatch`] naming both cameras for a database
 /// built for another camera.
@@ -205,15 +209,15 @@ pub fn load_databases(dir: &Path, camera: &Camera) -> Result<Vec<BandDatabase>> 
     let expected = camera_key(camera);
     let manifest = dir.join(MANIFEST);
     let text = std::fs::read_to_string(&manifest).map_err(|e| EstimateError::io(&manifest, &e))?;
-    let count: usize =
-        text.trim()
-            .parse()
-            .ok()
-            .filter(|&n| n > 0)
-            .ok_or_else(|| EstimateError::ModelFile {
-                path: manifest.display().to_string(),
-                message: format!("not a count of bands: {:?}", text.trim()),
-            })?;
+    let count: usize = text
+        .trim()
+        .parse()
+        .ok()
+        .filter(|&n| (1..=MAX_BANDS).contains(&n))
+        .ok_or_else(|| EstimateError::ModelFile {
+            path: manifest.display().to_string(),
+            message: format!("not a count of bands (1 to {MAX_BANDS}): {:?}", text.trim()),
+        })?;
     let mut bands = Vec::with_capacity(count);
     for i in 0..count {
         let path = database_file(dir, i);

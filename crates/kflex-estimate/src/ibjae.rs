@@ -127,16 +127,22 @@ impl<'a> RgbView<'a> {
     /// the stride is shorter than a row.
     pub fn new(data: &'a [u8], width: u32, height: u32, stride: usize) -> Result<Self> {
         let row = 3 * width as usize;
+        // in checked arithmetic: a huge stride or size is refused, not wrapped
         let needed = if height == 0 {
-            0
+            Some(0)
         } else {
-            stride * (height as usize - 1) + row
+            stride
+                .checked_mul(height as usize - 1)
+                .and_then(|n| n.checked_add(row))
         };
-        if stride < row || data.len() < needed || width == 0 || height == 0 {
+        let fits = needed.is_some_and(|n| data.len() >= n);
+        if stride < row || !fits || width == 0 || height == 0 {
             return Err(EstimateError::ImageSize {
                 width,
                 height,
-                expected: needed.max(row * height as usize),
+                expected: needed
+                    .unwrap_or(usize::MAX)
+                    .max(row.saturating_mul(height as usize)),
                 got: data.len(),
             });
         }
@@ -418,15 +424,17 @@ impl BandDatabase {
         };
         let roi = numbers(keys::ROI, 4)?;
         // pixels: whole, not negative, a region of at least one pixel
-        if roi
-            .iter()
-            .any(|&v| v < 0.0 || v.fract() != 0.0 || v > f64::from(u32::MAX))
+        let side = f64::from(kflex_model::MAX_IMAGE_SIDE);
+        if roi.iter().any(|&v| v < 0.0 || v.fract() != 0.0)
             || roi[2] < 1.0
             || roi[3] < 1.0
+            || roi[0] + roi[2] > side
+            || roi[1] + roi[3] > side
         {
             return Err(invalid(
                 keys::ROI,
-                "not a region of whole pixels (x0, y0 ≥ 0; width, height ≥ 1)",
+                "not a region of whole pixels inside an image of at most 16384 px a side \
+                 (x0, y0 ≥ 0; width, height ≥ 1)",
             ));
         }
         let band = numbers(keys::BAND, 4)?;

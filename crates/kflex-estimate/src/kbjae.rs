@@ -63,6 +63,11 @@ impl CommandRate {
     }
 }
 
+/// The largest command KBJAE takes, ± deg ([`Kbjae::predict`]).
+pub const MAX_THETA_DEG: f64 = 1e6;
+/// The largest command rate KBJAE takes, ± deg/s ([`Kbjae::predict`]).
+pub const MAX_RATE_DEG_PER_S: f64 = 1e9;
+
 /// KBJAE: `θ̂ = θ + θ̃(θ, θ')` with `θ̃` from the MLP (Table II).
 ///
 /// Its input is the command **actually sent to the plant**, `θ_c`, not the
@@ -143,7 +148,9 @@ impl Kbjae {
     /// KBJAE's angle for a command and its rate, deg (no history kept).
     ///
     /// # Errors
-    /// [`crate::EstimateError::Model`] for a non-finite input;
+    /// [`crate::EstimateError::Model`] for a non-finite input, an angle
+    /// beyond ±[`MAX_THETA_DEG`] or a rate beyond ±[`MAX_RATE_DEG_PER_S`], or
+    /// a non-finite answer of the model;
     /// [`crate::EstimateError::Onnx`] when the model fails.
     pub fn predict(&mut self, theta_deg: f64, rate_deg_per_s: f64) -> Result<f64> {
         for (name, value) in [("theta_deg", theta_deg), ("rate_deg_per_s", rate_deg_per_s)] {
@@ -151,9 +158,21 @@ impl Kbjae {
                 return Err(ModelError::NonFinite { name, value }.into());
             }
         }
+        // the network runs in f32: a value past these would reach it as
+        // infinity (and no joint bends or turns that far)
+        kflex_model::Bounds::closed(-MAX_THETA_DEG, MAX_THETA_DEG).check("theta_deg", theta_deg)?;
+        kflex_model::Bounds::closed(-MAX_RATE_DEG_PER_S, MAX_RATE_DEG_PER_S)
+            .check("rate_deg_per_s", rate_deg_per_s)?;
         let mut error = [0.0f32];
         self.model
             .run(&[theta_deg as f32, rate_deg_per_s as f32], 1, &mut error)?;
+        if !error[0].is_finite() {
+            return Err(ModelError::NonFinite {
+                name: "the model's predicted error",
+                value: f64::from(error[0]),
+            }
+            .into());
+        }
         Ok(theta_deg + f64::from(error[0]))
     }
 

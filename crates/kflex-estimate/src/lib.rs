@@ -155,7 +155,7 @@ pub use ibjae::{
 #[cfg(feature = "index")]
 pub use index::{FeatureIndex, IndexParams, Neighbour, Pose, ProjectionDims, SearchStats};
 #[cfg(feature = "onnx")]
-pub use kbjae::{CommandRate, KBJAE_INPUT, KBJAE_OUTPUT, Kbjae};
+pub use kbjae::{CommandRate, KBJAE_INPUT, KBJAE_OUTPUT, Kbjae, MAX_RATE_DEG_PER_S, MAX_THETA_DEG};
 /// The shared types this crate's API takes and returns.
 pub use kflex_model::{Bounds, Mask, RangeError, Roi};
 #[cfg(all(feature = "onnx", feature = "index"))]

@@ -121,6 +121,18 @@ fn a_database_of_another_camera_or_a_damaged_one_is_refused() {
     bytes[mid] ^= 0x40;
     std::fs::write(&file, bytes).unwrap();
     assert!(load_databases(&dir, &camera).is_err());
+    // a manifest counting more bands than any directory holds is refused
+    // before anything is sized by it
+    let manifest = dir.join(kflex_estimate::MANIFEST);
+    for count in ["1000000000000", "18446744073709551615", "0"] {
+        std::fs::write(&manifest, count).unwrap();
+        match load_databases(&dir, &camera) {
+            Err(EstimateError::ModelFile { message, .. }) => {
+                assert!(message.contains("not a count of bands"), "{message}");
+            }
+            other => panic!("{count}: expected a bad manifest, got {other:?}"),
+        }
+    }
 }
 
 #[test]

@@ -369,7 +369,7 @@ fn rejects_unchanged(filter: &mut dyn Fusion) {
         kbjae_deg: Some(10.0),
         ..Default::default()
     };
-    let bad: [(f64, Measurements, &str); 7] = [
+    let bad: [(f64, Measurements, &str); 9] = [
         (f64::NAN, good, "dt_s"),
         (0.0, good, "dt_s"),
         (-0.01, good, "dt_s"),
@@ -397,6 +397,23 @@ fn rejects_unchanged(filter: &mut dyn Fusion) {
                 ..good
             },
             "ibjae_sigma_deg",
+        ),
+        // finite, but far enough to overflow the filter's arithmetic
+        (
+            0.01,
+            Measurements {
+                kbjae_deg: Some(f64::MAX),
+                ..good
+            },
+            "kbjae_deg",
+        ),
+        (
+            0.01,
+            Measurements {
+                ibjae_deg: Some(-1e300),
+                ..good
+            },
+            "ibjae_deg",
         ),
     ];
     for (dt, m, name) in bad {

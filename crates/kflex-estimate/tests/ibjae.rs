@@ -116,6 +116,9 @@ fn band_metadata_out_of_range_is_refused_naming_the_key() {
         ("roi", "-1,0,10,10"),
         ("roi", "0.5,0,10,10"),
         ("roi", "0,0,0,10"),
+        // past any image: refused before anything is sized by it
+        ("roi", "0,0,4294967295,4294967295"),
+        ("roi", "16380,0,10,10"),
         ("band", "50,0,10,10"),
         ("grid", "0,1"),
         ("distance_per_deg", "-2"),
@@ -684,4 +687,32 @@ fn readers_of_several_bands_take_the_ones_read_and_read_the_rest() {
     let own0 = alone.read(&view, &[0]).unwrap().unwrap();
     assert_ne!(Some(own0), a);
     assert_eq!(both.unwrap().band, 0, "{both:?}");
+}
+
+/// Sizes whose products overflow are refused, not wrapped into a view or a
+/// segmentation of the wrong pixels.
+#[test]
+fn image_sizes_that_overflow_are_refused() {
+    let bytes = [0u8; 26];
+    assert!(matches!(
+        RgbView::new(&bytes, 1, 3, 1 << 63),
+        Err(EstimateError::ImageSize { .. })
+    ));
+    assert!(matches!(
+        RgbView::new(&bytes, u32::MAX, u32::MAX, usize::MAX),
+        Err(EstimateError::ImageSize { .. })
+    ));
+    // 3 × 2007567422 × 3062868337 wraps to 26 in 64 bits
+    let mut s = kflex_estimate::Segmenter::new(SegmentParams::default()).unwrap();
+    let roi = Roi {
+        x0: 0,
+        y0: 0,
+        width: 2,
+        height: 2,
+    };
+    assert!(matches!(
+        s.segment(&bytes, 2_007_567_422, 3_062_868_337, roi),
+        Err(EstimateError::ImageSize { .. })
+    ));
+    assert!(s.segment(&bytes, u32::MAX, u32::MAX, roi).is_err());
 }

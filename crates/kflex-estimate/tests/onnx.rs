@@ -112,9 +112,18 @@ fn kbjae_reads_a_given_rate_and_keeps_the_command_history() {
         k.step_with_rate(10.0, -7.0, 0.01).unwrap(),
         probe.predict(10.0, -7.0).unwrap()
     );
-    // a rejected tick changes nothing: a NaN rate, a bad dt
+    // a rejected tick changes nothing: a NaN rate, a bad dt, values the
+    // f32 network would read as infinite
     assert!(k.step_with_rate(10.5, f64::NAN, 0.01).is_err());
     assert!(k.step_with_rate(10.5, 3.0, -1.0).is_err());
+    assert!(k.step_with_rate(10.5, 1e39, 0.01).is_err());
+    assert!(k.step_with_rate(1e39, 3.0, 0.01).is_err());
+    // a difference of commands that large, too (1e-40 s after the last)
+    assert!(k.step(1e5, 1e-40).is_err());
+    let e = probe.predict(0.0, 1e39).unwrap_err();
+    assert_eq!(e.range().map(|r| r.name), Some("rate_deg_per_s"), "{e}");
+    let e = probe.predict(-2e6, 0.0).unwrap_err();
+    assert_eq!(e.range().map(|r| r.name), Some("theta_deg"), "{e}");
     // the history is the commands', so a difference step after it reads
     // the rate from 10.0
     assert_eq!(

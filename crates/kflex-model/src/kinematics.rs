@@ -136,10 +136,22 @@ impl TendonGeometry {
     ///
     /// # Errors
     /// [`ModelError::NonFinite`] for a NaN or infinite `delta_l_a_mm`;
+    /// as [`TendonGeometry::validate`] for a bad geometry or a `max_theta_rad`
+    /// that is not positive or past the geometry's range (NaN included);
     /// [`ModelError::Unreachable`] when `delta_l_a_mm` lies outside
     /// `[ΔL_a(max_theta), ΔL_a(−max_theta)]`, the range it reports.
     pub fn theta_rad_from_delta_l_a(&self, delta_l_a_mm: f64, max_theta_rad: f64) -> Result<f64> {
         crate::error::finite("delta_l_a_mm", delta_l_a_mm)?;
+        // the geometry and the range it is inverted over (NaN is out of it)
+        if max_theta_rad.is_nan() || max_theta_rad <= 0.0 {
+            return Err(RangeError {
+                name: "max_theta_deg",
+                value: max_theta_rad.to_degrees(),
+                bounds: Bounds::open(0.0, 180.0),
+            }
+            .into());
+        }
+        self.validate(max_theta_rad)?;
         let (lo, hi) = (-max_theta_rad, max_theta_rad);
         // decreasing: f(lo) is the largest value, f(hi) the smallest
         let (f_lo, f_hi) = (self.delta_l_a_mm(lo), self.delta_l_a_mm(hi));
@@ -199,6 +211,21 @@ mod tests {
 
     #[test]
     fn rejects_non_monotone_range_and_bad_geometry() {
+        // the inverse checks its range and geometry (NaN bounds would panic a clamp)
+        let k = TendonGeometry::default();
+        for max in [f64::NAN, -1.0, 0.0, 10.0] {
+            assert_eq!(
+                expect_range(k.theta_rad_from_delta_l_a(0.0, max), "max_theta_deg")
+                    .value
+                    .is_nan(),
+                max.is_nan()
+            );
+        }
+        let zero = TendonGeometry {
+            n_segments: 0,
+            ..Default::default()
+        };
+        expect_range(zero.theta_rad_from_delta_l_a(0.0, 1.0), "n_segments");
         let g = TendonGeometry {
             r_mm: 5.0,
             b_mm: 0.0,

@@ -132,11 +132,15 @@ pub trait Fusion {
 pub(crate) fn check_inputs(dt_s: f64, m: &Measurements) -> Result<()> {
     finite("dt_s", dt_s)?;
     Bounds::open_closed(0.0, 3600.0).check("dt_s", dt_s)?;
+    // within ±1e6 deg: larger readings would overflow the covariance's
+    // arithmetic to infinities, and no joint bends that far
     if let Some(z) = m.kbjae_deg {
         finite("kbjae_deg", z)?;
+        Bounds::closed(-1e6, 1e6).check("kbjae_deg", z)?;
     }
     if let Some(z) = m.ibjae_deg {
         finite("ibjae_deg", z)?;
+        Bounds::closed(-1e6, 1e6).check("ibjae_deg", z)?;
     }
     if let Some(s) = m.ibjae_sigma_deg {
         Bounds::closed(0.0, 1e6).check("ibjae_sigma_deg", s)?;

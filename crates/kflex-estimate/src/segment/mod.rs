@@ -493,7 +493,9 @@ impl Segmenter {
         height: u32,
         roi: Roi,
     ) -> Result<&Segmentation> {
-        let expected = width as usize * height as usize * 3;
+        // in u128: sides up to u32::MAX cannot wrap the product
+        let expected =
+            (u128::from(width) * u128::from(height) * 3).min(usize::MAX as u128) as usize;
         if width == 0 || height == 0 || rgb.len() != expected {
             return Err(EstimateError::ImageSize {
                 width,
