@@ -210,6 +210,12 @@ def test_kinematics_scalars_arrays_and_errors():
     np.testing.assert_allclose(back, theta, atol=1e-9)
     with pytest.raises(ValueError, match="not reachable"):
         g.theta_rad_from_delta_l_a(1e3, 1.6)
+    # the range it inverts over and the geometry are checked (a NaN range panicked)
+    for bad in (float("nan"), -1.0, 0.0):
+        with pytest.raises(kflex.RangeError, match="max_theta_deg"):
+            g.theta_rad_from_delta_l_a(0.0, bad)
+    with pytest.raises(kflex.RangeError, match="n_segments"):
+        kflex.TendonGeometry(n_segments=0).theta_rad_from_delta_l_a(0.0, 1.0)
     with pytest.raises(TypeError, match="got dtype int64"):
         g.delta_l_a_mm(np.arange(3))
 
@@ -339,6 +345,14 @@ def test_long_calls_release_the_interpreter(scene):
     _, shape = scene
     theta = 20.0 * np.sin(np.linspace(0.0, 60.0, 60_000)) + 20.0
     camera = kflex.Camera(intrinsics=kflex.Intrinsics.full_hd())
+    # a camera out of range is refused when made or changed, naming the field
+    bad = kflex.Intrinsics.full_hd()
+    bad.fx = -1.0
+    with pytest.raises(kflex.RangeError, match="fx"):
+        kflex.Camera(intrinsics=bad)
+    with pytest.raises(kflex.RangeError, match="fx"):
+        camera.intrinsics = bad
+    assert camera.intrinsics == kflex.Intrinsics.full_hd()
     renderer = kflex.SceneRenderer()
     frame = renderer.render(camera, shape)  # the background, cached
     for call in (

@@ -66,6 +66,11 @@ def test_kinematic_errors():
         kflex.KinematicSetSpec(amplitude_deg=30.0)
     with pytest.raises(TypeError, match="unknown field"):
         kflex.KinematicDatasetConfig(samples=5)
+    # each field in range, but together more than memory holds: refused
+    # before anything is allocated
+    sets = [{"amplitude_deg": 30.0, "frequency_hz": 0.1, "train": True}] * 1000
+    with pytest.raises(kflex.RangeError, match="samples_per_set"):
+        kflex.KinematicDatasetConfig(sets=sets, samples_per_set=10**7).validate()
 
 
 # ---- D^I ---------------------------------------------------------------------
@@ -123,6 +128,8 @@ def test_pairs_errors():
         kflex.ImagePairsConfig(pairs=2, theta_step_deg=2.0).generate()
     with pytest.raises(kflex.RangeError, match="hard_share"):
         kflex.ImagePairsConfig(hard_share=1.5).validate()
+    with pytest.raises(kflex.RangeError, match="pairs"):
+        kflex.ImagePairsConfig(pairs=10**7).validate()
     with pytest.raises(ValueError, match="unknown variant"):
         kflex.ImagePairsConfig(backgrounds=["mars"])
 

@@ -97,6 +97,11 @@ def test_kbjae_refuses_bad_arrays(kbjae_path: Path) -> None:
     with pytest.raises(ValueError, match="rate_deg_per_s"):
         k.errors(np.zeros(2), np.array([0.0, np.inf]))
     assert k.errors(np.zeros(0), np.zeros(0)).shape == (0,)
+    # values the f32 network would read as infinite
+    with pytest.raises(ValueError, match="rate_deg_per_s"):
+        k.predict(0.0, 1e39)
+    with pytest.raises(ValueError, match="theta_deg"):
+        k.predict(1e39, 0.0)
 
 
 # ---- model files ---------------------------------------------------------------
@@ -278,6 +283,12 @@ def test_the_index_refuses_bad_input() -> None:
         kflex.FeatureIndex.build(np.zeros((0, 8), np.float32), np.zeros(0))
     with pytest.raises(TypeError, match=r"\(N, D\)"):
         kflex.FeatureIndex.build(features[0], theta[:1])
+    # queries have the index's dimensions, and a single query is one row
+    with pytest.raises(TypeError, match=r"\(N, 8\)"):
+        index.nearest_batch(np.zeros((4, 2), np.float32))
+    with pytest.raises(TypeError, match=r"\(8,\) or \(1, 8\)"):
+        index.nearest(np.zeros((2, 4), np.float32))
+    assert len(index.nearest_batch(np.zeros((4, 8), np.float32))["index"]) == 4
 
 
 # ---- IBJAE and LBHJAE ----------------------------------------------------------

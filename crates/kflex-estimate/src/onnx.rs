@@ -193,6 +193,9 @@ impl TensorSpec {
     }
 }
 
+/// The most intra-op threads a model is loaded with ([`OnnxModel::load`]).
+pub const MAX_THREADS: usize = 256;
+
 /// An ONNX model with one `f32` input and one `f32` output, checked at load.
 pub struct OnnxModel {
     path: String,
@@ -258,6 +261,7 @@ impl OnnxModel {
     /// as `input` and `output` say.
     ///
     /// # Errors
+    /// [`EstimateError::Model`] naming `threads` above [`MAX_THREADS`];
     /// [`EstimateError::Io`] (with the io error's kind) for a file or card
     /// that cannot be read; [`EstimateError::ModelFile`] for a card that is
     /// not a model card;
@@ -273,6 +277,8 @@ impl OnnxModel {
         threads: usize,
     ) -> Result<Self> {
         let shown = path.display().to_string();
+        // ONNX Runtime takes the count as a C int; more than cores is waste
+        kflex_model::Bounds::closed(0.0, MAX_THREADS as f64).check("threads", threads as f64)?;
         let bytes = std::fs::read(path).map_err(|e| EstimateError::io(path, &e))?;
         let sha256 = sha256_hex(&bytes);
         if let Some(card) = card_sha256(path)?

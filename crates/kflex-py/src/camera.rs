@@ -206,10 +206,11 @@ pub struct PyCamera {
 #[pymethods]
 impl PyCamera {
     /// At the centre of the overtube's face, looking along it; the default
-    /// intrinsics and lens unless given.
+    /// intrinsics and lens unless given. Raises `RangeError` naming the
+    /// first parameter out of its range.
     #[new]
     #[pyo3(signature = (intrinsics = None, lens = None))]
-    fn py_new(intrinsics: Option<PyIntrinsics>, lens: Option<PyLens>) -> Self {
+    fn py_new(intrinsics: Option<PyIntrinsics>, lens: Option<PyLens>) -> Result<Self> {
         let mut inner = Camera::default();
         if let Some(k) = intrinsics {
             inner.intrinsics = k.inner;
@@ -217,7 +218,8 @@ impl PyCamera {
         if let Some(l) = lens {
             inner.lens = l.inner;
         }
-        Self { inner }
+        inner.validate()?;
+        Ok(Self { inner })
     }
 
     /// Intrinsics (a copy).
@@ -226,9 +228,14 @@ impl PyCamera {
         self.inner.intrinsics.into()
     }
 
+    /// Raises `RangeError` (the camera unchanged) for intrinsics out of range.
     #[setter]
-    fn set_intrinsics(&mut self, k: PyIntrinsics) {
-        self.inner.intrinsics = k.inner;
+    fn set_intrinsics(&mut self, k: PyIntrinsics) -> Result<()> {
+        let mut next = self.inner;
+        next.intrinsics = k.inner;
+        next.validate()?;
+        self.inner = next;
+        Ok(())
     }
 
     /// Lens (a copy).
@@ -237,9 +244,14 @@ impl PyCamera {
         self.inner.lens.into()
     }
 
+    /// Raises `RangeError` (the camera unchanged) for a lens out of range.
     #[setter]
-    fn set_lens(&mut self, lens: PyLens) {
-        self.inner.lens = lens.inner;
+    fn set_lens(&mut self, lens: PyLens) -> Result<()> {
+        let mut next = self.inner;
+        next.lens = lens.inner;
+        next.validate()?;
+        self.inner = next;
+        Ok(())
     }
 
     /// `camera_from_overtube` as a 4×4 homogeneous matrix (mm).

@@ -86,6 +86,32 @@ pub struct PyFeatureIndex {
     pub(crate) inner: FeatureIndex,
 }
 
+impl PyFeatureIndex {
+    /// The rows of `obj` as the index reads them: `D` columns (the index's
+    /// dimension), and `rows` rows where it is given; `TypeError` naming both
+    /// shapes otherwise.
+    fn rows(
+        &self,
+        name: &str,
+        obj: &Bound<'_, PyAny>,
+        one_row_ok: bool,
+        rows: Option<usize>,
+    ) -> Result<Vec<f32>> {
+        let (values, r, c) = array::rows_f32(name, obj, one_row_ok)?;
+        let dim = self.inner.dim();
+        if c != dim || rows.is_some_and(|n| n != r) {
+            let wanted = match rows {
+                Some(n) => format!("({dim},) or ({n}, {dim})"),
+                None => format!("(N, {dim})"),
+            };
+            return Err(crate::error::type_error(format!(
+                "{name}: expected shape {wanted} for an index of {dim} dimensions, got ({r}, {c})"
+            )));
+        }
+        Ok(values)
+    }
+}
+
 #[pymethods]
 impl PyFeatureIndex {
     /// Builds the index: `features` an (N, D) float32 or float64 array
@@ -150,7 +176,7 @@ impl PyFeatureIndex {
     /// float64). Raises `TypeError` for another shape, `ValueError` for a
     /// NaN or infinite component.
     fn nearest(&self, query: &Bound<'_, PyAny>) -> Result<PyNeighbour> {
-        let (query, _, _) = array::rows_f32("query", query, true)?;
+        let query = self.rows("query", query, true, Some(1))?;
         Ok(PyNeighbour {
             inner: self.inner.nearest(&query)?,
         })
@@ -159,7 +185,7 @@ impl PyFeatureIndex {
     /// The nearest neighbour by a plain linear scan: the reference
     /// `nearest` equals.
     fn nearest_linear(&self, query: &Bound<'_, PyAny>) -> Result<PyNeighbour> {
-        let (query, _, _) = array::rows_f32("query", query, true)?;
+        let query = self.rows("query", query, true, Some(1))?;
         Ok(PyNeighbour {
             inner: self.inner.nearest_linear(&query)?,
         })
@@ -174,7 +200,7 @@ impl PyFeatureIndex {
         py: Python<'py>,
         queries: &Bound<'py, PyAny>,
     ) -> Result<Bound<'py, PyDict>> {
-        let (queries, _, _) = array::rows_f32("queries", queries, false)?;
+        let queries = self.rows("queries", queries, false, None)?;
         let index = &self.inner;
         let found = py.detach(|| index.nearest_batch(&queries))?;
         let d = PyDict::new(py);

@@ -281,7 +281,7 @@ impl ImagePairsConfig {
     ///
     /// # Errors
     /// [`ControlError::OutOfRange`] naming the first setting out of its
-    /// range: `pairs` odd or outside `[2, 1e7]`, `theta_step_deg` outside
+    /// range: `pairs` odd or outside `[2, 1e6]`, `theta_step_deg` outside
     /// `[0.05, 1]`, `translation_step_mm` outside `[0.1, 10]`, `hard_share`
     /// or `blur_share` outside `[0, 1]`, `hard_offset_deg` outside `[1, 45]`
     /// or reversed, `backgrounds.len()`/`tissues.len()` 0,
@@ -290,7 +290,8 @@ impl ImagePairsConfig {
     /// `[0, 1]`, `blur_px` outside `[0, 20]`, `max_attempts` outside
     /// `[1, 1000]`; as [`BuildTolerances::validate`] and [`Segmenter::new`].
     pub fn validate(&self) -> Result<()> {
-        Bounds::closed(2.0, 1e7).check("pairs", self.pairs as f64)?;
+        // two 48×48 silhouettes a pair: a million pairs take 4.6 GB
+        Bounds::closed(2.0, 1e6).check("pairs", self.pairs as f64)?;
         if self.pairs % 2 == 1 {
             return Err(ControlError::NotEnoughData {
                 metric: "image pairs",

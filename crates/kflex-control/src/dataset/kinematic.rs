@@ -137,7 +137,8 @@ impl KinematicDatasetConfig {
     /// [`ControlError::OutOfRange`] naming the first setting out of its
     /// range: `sets.len()` outside `[1, 1000]`, a set's `amplitude_deg`
     /// outside `[0, 170]` or `frequency_hz` outside `(0, 100]`,
-    /// `samples_per_set` outside `[1, 1e7]`, `dt_s` outside `(0, 10]`,
+    /// `samples_per_set` outside `[1, 1e7]` or more than 5e7 samples in all,
+    /// `dt_s` outside `(0, 10]`,
     /// `warmup_cycles` above 1000, `spread` outside `[0, 0.5]`;
     /// [`ControlError::Model`] for the nominal plant's parameters.
     pub fn validate(&self) -> Result<()> {
@@ -147,6 +148,11 @@ impl KinematicDatasetConfig {
             Bounds::open_closed(0.0, 100.0).check("frequency_hz", s.frequency_hz)?;
         }
         Bounds::closed(1.0, 1e7).check("samples_per_set", self.samples_per_set as f64)?;
+        // each sample is three float64 values: 5e7 of them take 1.2 GB
+        Bounds::closed(1.0, 5e7).check(
+            "sets.len() * samples_per_set",
+            self.sets.len() as f64 * self.samples_per_set as f64,
+        )?;
         Bounds::open_closed(0.0, 10.0).check("dt_s", self.dt_s)?;
         Bounds::closed(0.0, 1000.0).check("warmup_cycles", f64::from(self.warmup_cycles))?;
         Bounds::closed(0.0, 0.5).check("spread", self.spread)?;

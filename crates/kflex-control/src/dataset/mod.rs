@@ -88,11 +88,15 @@ pub(crate) fn stream(seed: u64, tag: u64, index: u64) -> ChaCha8Rng {
     rng
 }
 
-/// The worker threads to use: `threads`, or every core for 0.
+/// The most worker threads a data set is made on, whatever is asked.
+pub const MAX_THREADS: usize = 256;
+
+/// The worker threads to use: `threads`, or every core for 0; at most one a
+/// job and [`MAX_THREADS`].
 fn thread_count(threads: usize, jobs: usize) -> usize {
     let all = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
     let wanted = if threads == 0 { all } else { threads };
-    wanted.clamp(1, jobs.max(1))
+    wanted.clamp(1, jobs.clamp(1, MAX_THREADS))
 }
 
 /// `job(i, state)` for every `i` in `0..jobs`, over `threads` worker
