@@ -1430,16 +1430,20 @@ periods = 1.0
             .as_f64()
             .unwrap()
     };
+    // `kflex-cli replay` of the log of case `stem` with `estimators`
+    let replay = |stem: &str, estimators: &str| {
+        let log = out_dir.join(format!("runs/{stem}_ibjae_seed2020.mcap"));
+        stdout_of(&kflex(&[
+            "replay",
+            log.to_str().unwrap(),
+            "--models",
+            models,
+            "--estimators",
+            estimators,
+        ]))
+    };
     let log = out_dir.join("runs/V_0deg_0pct_ibjae_seed2020.mcap");
-    let out = kflex(&[
-        "replay",
-        log.to_str().unwrap(),
-        "--models",
-        models,
-        "--estimators",
-        "kbjae,ibjae,lbhjae",
-    ]);
-    let stdout = stdout_of(&out);
+    let stdout = replay("V_0deg_0pct", "kbjae,ibjae,lbhjae");
     // a period (6.29 s) of 10 ms ticks, at 30 frames/s
     assert!(
         stdout.contains("(629 ticks of 0.01 s, 188 frames, seed 2020)"),
@@ -1498,23 +1502,7 @@ periods = 1.0
     );
     // under the middle tape IBJAE reads a hidden part in most frames, the
     // replay as the log (LBHJAE's IBJAE reads the same frames)
-    let taped = std::fs::read_dir(out_dir.join("runs"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .find(|p| {
-            p.file_name()
-                .is_some_and(|f| f.to_string_lossy().starts_with("V_0deg_40pct_ibjae_"))
-        })
-        .expect("the taped case's IBJAE log");
-    let out = kflex(&[
-        "replay",
-        taped.to_str().unwrap(),
-        "--models",
-        models,
-        "--estimators",
-        "ibjae,lbhjae",
-    ]);
-    let taped_stdout = stdout_of(&out);
+    let taped_stdout = replay("V_0deg_40pct", "ibjae,lbhjae");
     let (ibjae, logged) = (
         columns(&taped_stdout, "ibjae"),
         columns(&taped_stdout, "as logged"),

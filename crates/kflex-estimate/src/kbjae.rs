@@ -138,11 +138,29 @@ impl Kbjae {
         rate_deg_per_s: Option<f64>,
         dt_s: f64,
     ) -> Result<f64> {
+        let (angle, history) = self.answer(theta_c_deg, rate_deg_per_s, dt_s)?;
+        self.rate = history;
+        Ok(angle)
+    }
+
+    /// [`Kbjae::advance`]'s angle and the commands' history after it,
+    /// without moving the history: a caller that can still fail after
+    /// (LBHJAE's fusion) moves it with [`Kbjae::keep`] once it has not.
+    pub(crate) fn answer(
+        &mut self,
+        theta_c_deg: f64,
+        rate_deg_per_s: Option<f64>,
+        dt_s: f64,
+    ) -> Result<(f64, CommandRate)> {
         let mut history = self.rate;
         let difference = history.step(theta_c_deg, dt_s)?;
         let angle = self.predict(theta_c_deg, rate_deg_per_s.unwrap_or(difference))?;
+        Ok((angle, history))
+    }
+
+    /// Moves the commands' history to `history` ([`Kbjae::answer`]'s).
+    pub(crate) fn keep(&mut self, history: CommandRate) {
         self.rate = history;
-        Ok(angle)
     }
 
     /// KBJAE's angle for a command and its rate, deg (no history kept).

@@ -179,9 +179,10 @@ impl Lbhjae {
             }
             None => None,
         };
-        let kbjae_deg = self
+        // KBJAE's history moves only once the fusion has taken the tick
+        let (kbjae_deg, history) = self
             .kbjae
-            .advance(command.theta_c_deg, rate_deg_per_s, dt_s)?;
+            .answer(command.theta_c_deg, rate_deg_per_s, dt_s)?;
         let fused = self.fusion.step(
             dt_s,
             Measurements {
@@ -191,6 +192,7 @@ impl Lbhjae {
                 ibjae_occluded: ibjae.is_some_and(|r| r.occluded),
             },
         )?;
+        self.kbjae.keep(history);
         self.started = true;
         let estimate = LbhjaeEstimate {
             fused,
