@@ -79,17 +79,21 @@ impl Intrinsics {
     /// # Errors
     /// [`ModelError::OutOfRange`] naming the first quantity out of its range:
     /// `image width` or `image height` outside `[1, MAX_IMAGE_SIDE]`, `fx` or
-    /// `fy` outside `(0, 1e6)` px; [`ModelError::NonFinite`] for a NaN or
-    /// infinite `cx` or `cy`.
+    /// `fy` outside `[0.001, 1e6)` px, `cx` or `cy` outside `[-1e7, 1e7]` px;
+    /// [`ModelError::NonFinite`] for a NaN or infinite `cx` or `cy`.
     ///
     /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     pub fn validate(&self) -> Result<()> {
         crate::range::check_image_size(self.width, self.height)?;
-        Bounds::open(0.0, 1e6).check("fx", self.fx)?;
-        Bounds::open(0.0, 1e6).check("fy", self.fy)?;
+        // a focal length below a thousandth of a pixel, or a centre far off
+        // the image, sends every ray to infinity
+        Bounds::closed_open(1e-3, 1e6).check("fx", self.fx)?;
+        Bounds::closed_open(1e-3, 1e6).check("fy", self.fy)?;
         crate::error::finite("cx", self.cx)?;
         crate::error::finite("cy", self.cy)?;
+        Bounds::closed(-1e7, 1e7).check("cx", self.cx)?;
+        Bounds::closed(-1e7, 1e7).check("cy", self.cy)?;
         Ok(())
     }
 
@@ -255,13 +259,23 @@ impl Default for Camera {
 }
 
 impl Camera {
-    /// Checks the intrinsics, then the lens for them.
+    /// Checks the intrinsics, then the lens for them, then the mounting.
     ///
     /// # Errors
-    /// As [`Intrinsics::validate`], then [`Lens::validate`].
+    /// As [`Intrinsics::validate`], then [`Lens::validate`]; then
+    /// [`ModelError::NonFinite`] naming `camera_from_overtube` for a NaN or
+    /// infinite entry of the mounting.
     pub fn validate(&self) -> Result<()> {
         self.intrinsics.validate()?;
-        self.lens.validate(&self.intrinsics)
+        self.lens.validate(&self.intrinsics)?;
+        let m = self.camera_from_overtube.to_homogeneous();
+        if let Some(&bad) = m.iter().find(|v| !v.is_finite()) {
+            return Err(crate::ModelError::NonFinite {
+                name: "camera_from_overtube",
+                value: bad,
+            });
+        }
+        Ok(())
     }
 
     /// Projects a point given in the overtube frame; `None` if it is not in front of the camera.

@@ -240,6 +240,8 @@ impl Instrument {
     /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     /// [`ModelError::OutOfWorkspace`]: crate::ModelError::OutOfWorkspace
     pub fn shape(&self, theta_deg: f64, translation_mm: f64) -> Result<InstrumentShape> {
+        // the fields are public: checked before anything is sized by them
+        self.validate()?;
         let mut out = InstrumentShape {
             bodies: Vec::with_capacity(4 * self.n_segments as usize + 7),
             tip_mm: [0.0; 3],
@@ -258,6 +260,7 @@ impl Instrument {
         translation_mm: f64,
         out: &mut InstrumentShape,
     ) -> Result<()> {
+        self.validate()?;
         let two_n = 2 * self.n_segments as usize;
         let (l, r) = (self.joint.link_length_mm, self.joint.link_radius_mm);
         self.build(theta_deg, translation_mm, out, |_| {

@@ -148,10 +148,10 @@ impl Trajectory {
     ///   `[1, 1e6]`, a leg's `leg amplitude_deg` outside `[0, 360]` or
     ///   `leg frequency_hz` outside `(0, 1000)`;
     /// * `BandLimited`: `min_deg` outside `[-360, 360]`, `max_deg` outside
-    ///   `[min_deg, 360]`, `cutoff_hz` outside `(0, 1000)`, `components`
+    ///   `[min_deg, 360]`, `cutoff_hz` outside `[1e-6, 1000)`, `components`
     ///   outside `[1, 1024]`;
     /// * `Steps`: `min_deg` and `max_deg` as for `BandLimited`, `hold_s`
-    ///   outside `(0, 1e6)`, `ramp_s` outside `[0, hold_s]`.
+    ///   outside `(0, 1e6)`, `ramp_s` outside `[0, hold_s]` or in `(0, 1e-6)`.
     ///
     /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
@@ -191,7 +191,8 @@ impl Trajectory {
                 seed,
             } => {
                 let (lo, hi) = range(*min_deg, *max_deg)?;
-                Bounds::open(0.0, 1e3).check("cutoff_hz", *cutoff_hz)?;
+                // at least 1e-6 Hz: far lower, the 1/f amplitudes overflow
+                Bounds::closed_open(1e-6, 1e3).check("cutoff_hz", *cutoff_hz)?;
                 Bounds::closed(1.0, 1024.0).check("components", f64::from(*components))?;
                 let mut rng = ChaCha8Rng::seed_from_u64(*seed);
                 let mut parts: Vec<Sine> = (0..*components)
@@ -225,6 +226,10 @@ impl Trajectory {
                 let (lo, hi) = range(*min_deg, *max_deg)?;
                 Bounds::open(0.0, 1e6).check("hold_s", *hold_s)?;
                 Bounds::closed(0.0, *hold_s).check("ramp_s", *ramp_s)?;
+                // a ramp is none or at least a microsecond (the rate divides by it)
+                if *ramp_s > 0.0 && *ramp_s < 1e-6 {
+                    Bounds::closed(1e-6, *hold_s).check("ramp_s", *ramp_s)?;
+                }
                 let mut rng = ChaCha8Rng::seed_from_u64(*seed);
                 let levels = (0..STEP_LEVELS)
                     .map(|_| rng.random_range(lo..=hi))
@@ -455,5 +460,22 @@ mod tests {
         };
         let e = expect_range(bad.sampler(), "ramp_s");
         assert_eq!((e.value, e.bounds.max), (2.0, 1.0));
+        // values whose arithmetic overflows to infinite or NaN commands
+        let bad = Trajectory::BandLimited {
+            min_deg: 0.0,
+            max_deg: 10.0,
+            cutoff_hz: 1e-308,
+            components: 64,
+            seed: 0,
+        };
+        expect_range(bad.sampler(), "cutoff_hz");
+        let bad = Trajectory::Steps {
+            min_deg: 0.0,
+            max_deg: 1.0,
+            hold_s: 1.0,
+            ramp_s: 1e-309,
+            seed: 0,
+        };
+        expect_range(bad.sampler(), "ramp_s");
     }
 }

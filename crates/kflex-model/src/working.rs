@@ -229,13 +229,15 @@ impl Roi {
     /// instrument's workspace; [`ModelError::OutOfRange`] for an instrument
     /// parameter out of its range, or a reversed, non-finite or too wide pose
     /// range (a span past the workspace's); [`ModelError::NotInView`] when the
-    /// distal part never comes into the image.
+    /// distal part never comes into the image; as [`Camera::validate`] for a
+    /// bad camera.
     pub fn for_workspace(
         camera: &Camera,
         instrument: &Instrument,
         poses: &PoseRange,
         margin_px: u32,
     ) -> Result<Roi> {
+        camera.validate()?;
         let (nt, nd) = poses.steps(instrument)?;
         let mut shape = InstrumentShape::default();
         let mut extent = EMPTY;
@@ -365,6 +367,7 @@ impl WorkingRegions {
         poses: &PoseRange,
         banding: &Banding,
     ) -> Result<WorkingRegions> {
+        camera.validate()?;
         banding.validate()?;
         poses.steps(instrument)?;
         let [t0, t1] = poses.theta_deg;
@@ -452,7 +455,14 @@ impl WorkingRegions {
     /// taken as the range's start).
     #[must_use]
     pub fn nearest(&self, theta_deg: f64, translation_mm: f64) -> Option<&WorkingBand> {
-        let clamp = |x: f64, [lo, hi]: [f64; 2]| if x.is_nan() { lo } else { x.clamp(lo, hi) };
+        // (a range read from a file may be reversed or NaN: no clamp panics)
+        let clamp = |x: f64, [lo, hi]: [f64; 2]| {
+            if x.is_nan() || lo.is_nan() || hi.is_nan() || lo > hi {
+                lo
+            } else {
+                x.clamp(lo, hi)
+            }
+        };
         self.at(
             clamp(theta_deg, self.poses.theta_deg),
             clamp(translation_mm, self.poses.translation_mm),
@@ -837,6 +847,12 @@ mod tests {
             regions.nearest(f64::NAN, f64::NAN),
             regions.at(-90.0, 8.0).ok()
         );
+        // regions read from a file may carry a reversed range: no panic
+        let reversed: WorkingRegions = serde_json::from_str(
+            r#"{"poses":{"theta_deg":[1,0],"translation_mm":[0,1]},"bands":[]}"#,
+        )
+        .unwrap();
+        assert_eq!(reversed.nearest(0.5, 0.5), None);
         // bad banding is refused, by name
         for (banding, name) in [
             (

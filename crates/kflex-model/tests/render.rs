@@ -445,6 +445,50 @@ fn bad_input_is_a_typed_error() {
     );
     let e = range_of(Intrinsics::from_fov(640, 480, 180.0));
     assert_eq!((e.name, e.value), ("hfov_deg", 180.0));
+    // the instrument's public fields are checked before anything is sized
+    // by them (u32::MAX segments asked for terabytes), and NaN is refused
+    // rather than drawn as nothing
+    let huge = Instrument {
+        n_segments: u32::MAX,
+        ..Instrument::kflex()
+    };
+    assert_eq!(range_of(huge.shape(0.0, 10.0)).name, "n_segments");
+    let mut nan = Instrument::kflex();
+    nan.joint.link_length_mm = f64::NAN;
+    assert!(nan.shape(0.0, 10.0).is_err());
+    let mut out = InstrumentShape::default();
+    assert!(nan.shape_into(0.0, 10.0, &mut out).is_err());
+    // cameras whose rays would all be infinite or NaN
+    let mut far = Camera::default();
+    far.intrinsics.fx = 1e-300;
+    assert_eq!(range_of(far.validate()).name, "fx");
+    let mut off = Camera::default();
+    off.intrinsics.cx = 1e200;
+    assert_eq!(range_of(off.validate()).name, "cx");
+    let mut lost = Camera::default();
+    lost.camera_from_overtube.translation.vector.x = f64::NAN;
+    assert!(matches!(
+        lost.validate(),
+        Err(ModelError::NonFinite {
+            name: "camera_from_overtube",
+            ..
+        })
+    ));
+    assert!(
+        Rasterizer::new()
+            .silhouette(&lost, &shape, &mut Mask::new(640, 480).unwrap())
+            .is_err()
+    );
+    // the working regions check the camera they are cut for
+    let poses = kflex_model::PoseRange {
+        theta_deg: [0.0, 50.0],
+        translation_mm: [10.0, 10.0],
+    };
+    assert!(Roi::for_workspace(&lost, &instrument, &poses, 4).is_err());
+    assert_eq!(
+        range_of(Roi::for_workspace(&far, &instrument, &poses, 4)).name,
+        "fx"
+    );
 }
 
 #[test]

@@ -294,6 +294,14 @@ fn bad_input_is_a_typed_error() {
             },
             "illumination_gain",
         ),
+        // so small a blur's kernel underflows: the frame came out black
+        (
+            FrameParams {
+                blur_px: 1e-200,
+                ..FrameParams::default()
+            },
+            "blur_px",
+        ),
         (
             FrameParams {
                 occlusion: Some(Occlusion::new(1.5, 0.5)),

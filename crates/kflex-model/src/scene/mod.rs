@@ -119,12 +119,17 @@ impl FrameParams {
     ///
     /// # Errors
     /// [`crate::ModelError::OutOfRange`] naming the first out of its range:
-    /// `illumination_gain` in [0.05, 5], `noise_std` in [0, 1], `blur_px` in
-    /// [0, 20], `occlusion.fraction` and `occlusion.position` in [0, 1].
+    /// `illumination_gain` in [0.05, 5], `noise_std` in [0, 1], `blur_px` 0 or
+    /// in [0.01, 20], `occlusion.fraction` and `occlusion.position` in [0, 1].
     pub fn validate(&self) -> Result<()> {
         Bounds::closed(0.05, 5.0).check("illumination_gain", self.illumination_gain)?;
         Bounds::closed(0.0, 1.0).check("noise_std", self.noise_std)?;
         Bounds::closed(0.0, 20.0).check("blur_px", self.blur_px)?;
+        // a blur is none or at least a hundredth of a pixel: below, its
+        // kernel's σ² underflows and the frame would come out black
+        if self.blur_px > 0.0 && self.blur_px < 0.01 {
+            Bounds::closed(0.01, 20.0).check("blur_px", self.blur_px)?;
+        }
         if let Some(o) = self.occlusion {
             Bounds::closed(0.0, 1.0).check("occlusion.fraction", o.fraction)?;
             Bounds::closed(0.0, 1.0).check("occlusion.position", o.position)?;
