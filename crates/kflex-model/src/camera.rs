@@ -103,10 +103,11 @@ impl Intrinsics {
     /// # Errors
     /// [`ModelError::OutOfRange`] naming `roi width` or `roi height` when it is
     /// outside `(0, 1e6)` px (an empty or huge region), `image width` or
-    /// `image height` for an output size out of `[1, MAX_IMAGE_SIDE]`, or `fx`
-    /// or `fy` when the rescaled focal length leaves `(0, 1e6)` px;
-    /// [`ModelError::NonFinite`] naming `cx` or `cy` for a NaN or infinite `x0`
-    /// or `y0`.
+    /// `image height` for an output size out of `[1, MAX_IMAGE_SIDE]`, `fx`
+    /// or `fy` when the rescaled focal length leaves `[0.001, 1e6)` px, `cx`
+    /// or `cy` when the rescaled centre leaves `[-1e7, 1e7]` px (as
+    /// [`Intrinsics::validate`]); [`ModelError::NonFinite`] naming `cx` or
+    /// `cy` for a NaN or infinite `x0` or `y0`.
     ///
     /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
