@@ -898,47 +898,17 @@ fn build_db_refuses_a_missing_model_and_bad_steps() {
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../kflex-estimate/tests/data");
     let scnn = data.join("scnn_test.onnx");
     let scnn = scnn.to_str().unwrap();
-    assert_refused(
-        &[
-            "build-db",
-            "--scnn",
-            scnn,
-            "--out",
-            out,
-            "--theta-step",
-            "0",
-        ],
-        "theta_step_deg",
-    );
-    assert_refused(
-        &["build-db", "--scnn", scnn, "--out", out, "--d-step", "-1"],
-        "translation_step_mm",
-    );
-    // a step so fine the grid would not fit in memory, named
-    assert_refused(
-        &[
-            "build-db",
-            "--scnn",
-            scnn,
-            "--out",
-            out,
-            "--theta-step",
-            "1e-9",
-        ],
-        "--theta-step 0.000000001",
-    );
-    assert_refused(
-        &[
-            "build-db",
-            "--scnn",
-            scnn,
-            "--out",
-            out,
-            "--theta-step",
-            "1e-300",
-        ],
-        "poses in the band's grid",
-    );
+    // bad steps, each named; one so fine the grid would not fit in memory
+    for (step, needle) in [
+        (["--theta-step", "0"], "theta_step_deg"),
+        (["--d-step", "-1"], "translation_step_mm"),
+        (["--theta-step", "1e-9"], "--theta-step 0.000000001"),
+        (["--theta-step", "1e-300"], "poses in the band's grid"),
+    ] {
+        let mut args = vec!["build-db", "--scnn", scnn, "--out", out];
+        args.extend(step);
+        assert_refused(&args, needle);
+    }
     assert!(!Path::new(out).exists());
     // an --out that cannot take the databases is refused before any work
     // (the model is not even loaded)
