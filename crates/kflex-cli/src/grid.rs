@@ -169,22 +169,8 @@ pub fn run(
          --estimators none",
     )?;
     let total_cases = grid.cases.len();
-    // one thread a job at most, as the grid has them: an estimation case is
-    // one job (its estimators share each run), a compensation case one a
-    // estimator
-    let estimating = grid
-        .estimators
-        .iter()
-        .any(|&e| e != kflex_control::EstimatorKind::None);
-    let job_count: usize = grid
-        .cases
-        .iter()
-        .map(|c| match c.kind {
-            kflex_control::CaseKind::Estimation => usize::from(estimating),
-            kflex_control::CaseKind::Compensation => grid.estimators.len(),
-        })
-        .sum();
-    let jobs = jobs.min(job_count.max(1));
+    // one thread a job at most, as the grid runs them
+    let jobs = jobs.min(grid.job_count().max(1));
     println!(
         "kflex run — scenario {}{} ({total_cases} case{}, estimators {}, {} repeat{}, seeds {}.., {} period{} of the input, {jobs} thread{})",
         path.display(),

@@ -392,11 +392,13 @@ impl ExperimentGrid {
             let seed = self.seed.wrapping_add(u64::from(r));
             let background = self.backgrounds[r as usize % self.backgrounds.len()];
             scenario.frames.background = background;
-            let mut config = self.plant.perturbed(seed, self.spread)?;
-            config.sheath_deg = case.sheath_deg;
-            config.noise = self.noise;
-            config.seed = seed;
-            let mut plant = Plant::new(config)?;
+            // the case's sheath, noise and seed replace the plant's before
+            // anything checks it (as `OpenLoopGrid` does)
+            let mut base = self.plant;
+            base.sheath_deg = case.sheath_deg;
+            base.noise = self.noise;
+            base.seed = seed;
+            let mut plant = Plant::new(base.perturbed(seed, self.spread)?)?;
             let members = estimators
                 .iter()
                 .map(|&kind| match kind {
@@ -509,6 +511,39 @@ impl ExperimentGrid {
         self.run_until(jobs, make, progress, on_run, &never)
     }
 
+    /// How many jobs the grid runs: an estimation case is one (its
+    /// estimators share each run), a compensation case one per estimator;
+    /// an estimator named twice runs once. A run on more threads than this
+    /// leaves the rest idle.
+    #[must_use]
+    pub fn job_count(&self) -> usize {
+        self.jobs().len()
+    }
+
+    /// The jobs: each case with the estimators on its runs.
+    fn jobs(&self) -> Vec<(&Case, Vec<EstimatorKind>)> {
+        // an estimator named twice runs once
+        let mut estimators: Vec<EstimatorKind> = Vec::new();
+        for &e in &self.estimators {
+            if !estimators.contains(&e) {
+                estimators.push(e);
+            }
+        }
+        let estimating: Vec<EstimatorKind> = estimators
+            .iter()
+            .copied()
+            .filter(|&e| e != EstimatorKind::None)
+            .collect();
+        self.cases
+            .iter()
+            .flat_map(|c| match c.kind {
+                CaseKind::Estimation => vec![(c, estimating.clone())],
+                CaseKind::Compensation => estimators.iter().map(|&e| (c, vec![e])).collect(),
+            })
+            .filter(|(_, e)| !e.is_empty())
+            .collect()
+    }
+
     /// [`ExperimentGrid::run_with`], stopping when `stop` is set (e.g. by a
     /// Ctrl-C handler): the runs in progress finish, no further run starts,
     /// and the grid returns [`ControlError::Interrupted`].
@@ -526,29 +561,7 @@ impl ExperimentGrid {
         use std::sync::Mutex;
         use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
         self.validate()?;
-        // an estimator named twice runs once
-        let mut estimators: Vec<EstimatorKind> = Vec::new();
-        for &e in &self.estimators {
-            if !estimators.contains(&e) {
-                estimators.push(e);
-            }
-        }
-        // an estimation case is one job (its estimators share each run), a
-        // compensation case one job per estimator
-        let estimating: Vec<EstimatorKind> = estimators
-            .iter()
-            .copied()
-            .filter(|&e| e != EstimatorKind::None)
-            .collect();
-        let pairs: Vec<(&Case, Vec<EstimatorKind>)> = self
-            .cases
-            .iter()
-            .flat_map(|c| match c.kind {
-                CaseKind::Estimation => vec![(c, estimating.clone())],
-                CaseKind::Compensation => estimators.iter().map(|&e| (c, vec![e])).collect(),
-            })
-            .filter(|(_, e)| !e.is_empty())
-            .collect();
+        let pairs = self.jobs();
         let results: Mutex<Vec<Option<Result<Vec<Record>>>>> =
             Mutex::new((0..pairs.len()).map(|_| None).collect());
         let (next, done, failed) = (

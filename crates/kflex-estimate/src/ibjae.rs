@@ -433,8 +433,11 @@ impl BandDatabase {
         {
             return Err(invalid(
                 keys::ROI,
-                "not a region of whole pixels inside an image of at most 16384 px a side \
-                 (x0, y0 ≥ 0; width, height ≥ 1)",
+                &format!(
+                    "not a region of whole pixels inside an image of at most {} px a side \
+                     (x0, y0 ≥ 0; width, height ≥ 1)",
+                    kflex_model::MAX_IMAGE_SIDE
+                ),
             ));
         }
         let band = numbers(keys::BAND, 4)?;
@@ -933,6 +936,8 @@ impl Ibjae {
     /// where its region shows no instrument.
     fn read_band(&mut self, frame: &RgbView, i: usize) -> Result<Option<IbjaeReading>> {
         let Some(db) = self.bands.get(i) else {
+            let last = self.bands.len().saturating_sub(1);
+            kflex_model::Bounds::closed(0.0, last as f64).check("band", i as f64)?;
             return Ok(None);
         };
         let roi = db.band.roi;

@@ -207,7 +207,9 @@ impl BuiltInstrument {
     ///
     /// # Errors
     /// As [`Instrument::shape`]; [`crate::ModelError::OutOfRange`] naming
-    /// `links.len()` when there is not one entry per link (`2n`).
+    /// `links.len()` when there is not one entry per link (`2n`), or a link's
+    /// length or radius outside `(0, 100]` mm or share of the bend outside
+    /// `[0, 1]`.
     pub fn shape_into(
         &self,
         theta_deg: f64,
@@ -216,6 +218,12 @@ impl BuiltInstrument {
     ) -> Result<()> {
         let two_n = 2.0 * f64::from(self.nominal.n_segments);
         Bounds::closed(two_n, two_n).check("links.len()", self.links.len() as f64)?;
+        // the links are public too: a NaN would draw nothing, silently
+        for &(length, radius, share) in &self.links {
+            Bounds::open_closed(0.0, 100.0).check("links length_mm", length)?;
+            Bounds::open_closed(0.0, 100.0).check("links radius_mm", radius)?;
+            Bounds::closed(0.0, 1.0).check("links share", share)?;
+        }
         let links = &self.links;
         self.nominal.build(theta_deg, translation_mm, out, |j| {
             links[j.min(links.len() - 1)]

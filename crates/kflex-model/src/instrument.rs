@@ -232,7 +232,8 @@ impl Instrument {
     /// The shape at bend `theta_deg` and translation `translation_mm`.
     ///
     /// # Errors
-    /// [`ModelError::NonFinite`] for a NaN or infinite `theta_deg` or
+    /// As [`Instrument::validate`] for a parameter out of its range (the
+    /// fields are public); [`ModelError::NonFinite`] for a NaN or infinite `theta_deg` or
     /// `translation_mm`; [`ModelError::OutOfWorkspace`] naming `theta_deg` past
     /// the joint's hard stops `±joint.max_theta_deg`, or `translation_mm`
     /// outside the stage's travel `[translation.min_mm, translation.max_mm]`.
@@ -240,12 +241,7 @@ impl Instrument {
     /// [`ModelError::NonFinite`]: crate::ModelError::NonFinite
     /// [`ModelError::OutOfWorkspace`]: crate::ModelError::OutOfWorkspace
     pub fn shape(&self, theta_deg: f64, translation_mm: f64) -> Result<InstrumentShape> {
-        // the fields are public: checked before anything is sized by them
-        self.validate()?;
-        let mut out = InstrumentShape {
-            bodies: Vec::with_capacity(4 * self.n_segments as usize + 7),
-            tip_mm: [0.0; 3],
-        };
+        let mut out = InstrumentShape::default();
         self.shape_into(theta_deg, translation_mm, &mut out)?;
         Ok(out)
     }
@@ -260,7 +256,6 @@ impl Instrument {
         translation_mm: f64,
         out: &mut InstrumentShape,
     ) -> Result<()> {
-        self.validate()?;
         let two_n = 2 * self.n_segments as usize;
         let (l, r) = (self.joint.link_length_mm, self.joint.link_radius_mm);
         self.build(theta_deg, translation_mm, out, |_| {
@@ -278,6 +273,8 @@ impl Instrument {
         out: &mut InstrumentShape,
         link: impl Fn(usize) -> (f64, f64, f64),
     ) -> Result<()> {
+        // the fields are public: checked before anything is sized by them
+        self.validate()?;
         check_pose(
             self.joint.max_theta_deg,
             &self.translation,

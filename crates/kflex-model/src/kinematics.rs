@@ -67,7 +67,12 @@ impl TendonGeometry {
         Bounds::open(0.0, 100.0).check("tendon_offset_mm", self.tendon_offset_mm)?;
         let phi_max = max_theta_rad / self.two_n();
         let limit = (self.tendon_offset_mm / (self.r_mm - self.b_mm)).atan();
-        if phi_max >= limit || phi_max >= std::f64::consts::FRAC_PI_2 {
+        // (NaN and a range that is not positive are out of it too)
+        if phi_max.is_nan()
+            || phi_max <= 0.0
+            || phi_max >= limit
+            || phi_max >= std::f64::consts::FRAC_PI_2
+        {
             let theta_limit_deg = (2.0 * self.two_n() * limit).to_degrees() / 2.0;
             return Err(RangeError {
                 name: "max_theta_deg",
@@ -142,15 +147,7 @@ impl TendonGeometry {
     /// `[ΔL_a(max_theta), ΔL_a(−max_theta)]`, the range it reports.
     pub fn theta_rad_from_delta_l_a(&self, delta_l_a_mm: f64, max_theta_rad: f64) -> Result<f64> {
         crate::error::finite("delta_l_a_mm", delta_l_a_mm)?;
-        // the geometry and the range it is inverted over (NaN is out of it)
-        if max_theta_rad.is_nan() || max_theta_rad <= 0.0 {
-            return Err(RangeError {
-                name: "max_theta_deg",
-                value: max_theta_rad.to_degrees(),
-                bounds: Bounds::open(0.0, 180.0),
-            }
-            .into());
-        }
+        // the geometry and the range it is inverted over
         self.validate(max_theta_rad)?;
         let (lo, hi) = (-max_theta_rad, max_theta_rad);
         // decreasing: f(lo) is the largest value, f(hi) the smallest

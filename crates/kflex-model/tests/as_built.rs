@@ -91,6 +91,20 @@ fn bad_tolerances_and_hand_built_links_are_refused_by_name() {
         Err(ModelError::OutOfRange(e)) => assert_eq!((e.name, e.value), ("links.len()", 3.0)),
         other => panic!("{other:?}"),
     }
+    // a link or a design with a NaN in it draws nothing, silently: refused
+    let mut nan_link = BuildTolerances::default()
+        .instrument(&instrument, 0)
+        .unwrap();
+    nan_link.links[1].0 = f64::NAN;
+    match nan_link.shape(10.0, 10.0) {
+        Err(ModelError::OutOfRange(e)) => assert_eq!(e.name, "links length_mm"),
+        other => panic!("{other:?}"),
+    }
+    let mut nan_design = BuildTolerances::default()
+        .instrument(&instrument, 0)
+        .unwrap();
+    nan_design.nominal.joint.link_radius_mm = f64::NAN;
+    assert!(nan_design.shape(10.0, 10.0).is_err());
 }
 
 #[test]

@@ -191,6 +191,23 @@ pub(crate) fn column(py: Python<'_>, values: Vec<f64>) -> Bound<'_, PyAny> {
     values.into_pyarray(py).into_any()
 }
 
+/// 2×2 covariances as an `(n, 2, 2)` float64 array.
+///
+/// # Errors
+/// Never for a whole series (the shape is the values'); a `RuntimeError` if it were not.
+pub(crate) fn covariances<'py>(
+    py: Python<'py>,
+    values: impl Iterator<Item = [[f64; 2]; 2]>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let flat: Vec<f64> = values
+        .flat_map(|c| [c[0][0], c[0][1], c[1][0], c[1][1]])
+        .collect();
+    let n = flat.len() / 4;
+    let a = numpy::ndarray::Array3::from_shape_vec((n, 2, 2), flat)
+        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+    Ok(a.into_pyarray(py).into_any())
+}
+
 /// A one-dimensional series of flags: a bool array or a list of bools.
 ///
 /// # Errors

@@ -223,16 +223,10 @@ pub(crate) fn details_dict<'py>(
     let consistent = Array2::from_shape_vec((ticks.len(), 2), consistent)
         .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
     d.set_item("ibjae_consistent_deg", consistent.into_pyarray(py))?;
-    let covariance: Vec<f64> = ticks
+    let covariances = ticks
         .iter()
-        .flat_map(|t| {
-            let c = t.theta_hat_covariance.unwrap_or([[f64::NAN; 2]; 2]);
-            [c[0][0], c[0][1], c[1][0], c[1][1]]
-        })
-        .collect();
-    let covariance = numpy::ndarray::Array3::from_shape_vec((ticks.len(), 2, 2), covariance)
-        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
-    d.set_item("theta_hat_covariance", covariance.into_pyarray(py))?;
+        .map(|t| t.theta_hat_covariance.unwrap_or([[f64::NAN; 2]; 2]));
+    d.set_item("theta_hat_covariance", array::covariances(py, covariances)?)?;
     let flags: [(&str, Flag); 2] = [
         ("frame_arrived", |t| t.frame_arrived == Some(true)),
         ("ibjae_occluded", |t| t.ibjae_occluded == Some(true)),

@@ -147,16 +147,10 @@ fn run_series<'py>(
         flags(|e| matches!(e.ibjae, SensorUse::Gated { .. })),
     )?;
     // as `run_experiment`'s details name them
-    let covariance: Vec<f64> = out
-        .iter()
-        .flat_map(|e| {
-            let c = e.covariance;
-            [c[0][0], c[0][1], c[1][0], c[1][1]]
-        })
-        .collect();
-    let covariance = numpy::ndarray::Array3::from_shape_vec((n, 2, 2), covariance)
-        .map_err(|e| type_error(e.to_string()))?;
-    d.set_item("theta_hat_covariance", covariance.into_pyarray(py))?;
+    d.set_item(
+        "theta_hat_covariance",
+        array::covariances(py, out.iter().map(|e| e.covariance))?,
+    )?;
     d.set_item(
         "ibjae_nis",
         array::column(
@@ -182,9 +176,7 @@ fn flag_series(name: &str, obj: Option<&Bound<'_, PyAny>>, n: usize) -> Result<V
     let Some(obj) = obj.filter(|o| !o.is_none()) else {
         return Ok(vec![false; n]);
     };
-    let v: Vec<bool> = obj
-        .extract()
-        .map_err(|_| type_error(format!("{name}: expected a sequence of bools")))?;
+    let v = array::flags(name, obj)?;
     if v.len() != n {
         return Err(type_error(format!(
             "{name}: expected {n} values (one per tick), got {}",
