@@ -455,8 +455,18 @@ impl PyPlant {
 }
 
 /// The states as columns: each numeric leaf of the serde form under its
-/// dotted path.
+/// dotted path (converted without the interpreter lock).
 fn columns<'py>(py: Python<'py>, states: &[PlantState]) -> Result<Bound<'py, PyDict>> {
+    let (names, cols) = py.detach(|| state_columns(states))?;
+    let out = PyDict::new(py);
+    for (name, col) in names.into_iter().zip(cols) {
+        out.set_item(name, array::column(py, col))?;
+    }
+    Ok(out)
+}
+
+/// [`columns`]' names and values.
+fn state_columns(states: &[PlantState]) -> Result<(Vec<String>, Vec<Vec<f64>>)> {
     let mut names: Vec<String> = Vec::new();
     let mut cols: Vec<Vec<f64>> = Vec::new();
     let mut row = Vec::new();
@@ -476,11 +486,7 @@ fn columns<'py>(py: Python<'py>, states: &[PlantState]) -> Result<Bound<'py, PyD
         names = row.iter().map(|(k, _)| k.clone()).collect();
         cols = vec![Vec::new(); names.len()];
     }
-    let out = PyDict::new(py);
-    for (name, col) in names.into_iter().zip(cols) {
-        out.set_item(name, array::column(py, col))?;
-    }
-    Ok(out)
+    Ok((names, cols))
 }
 
 fn flatten(prefix: &str, v: &Value, out: &mut Vec<(String, f64)>) {
