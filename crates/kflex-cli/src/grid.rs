@@ -15,7 +15,7 @@ use kflex_control::ResultRow as Row;
 use crate::figures::Collector;
 use crate::output::{
     PEAK_LOSS_DEFINITION, PEAK_TO_PEAK_DEFINITION, WIDTH_DEFINITION, check_writable, paper_pm, pm,
-    write_atomic,
+    write_atomic_set,
 };
 use kflex_control::ModelDir;
 
@@ -121,9 +121,12 @@ pub fn run(
         check_writable(dir)?;
     }
     if let Some(r) = only.repeats
-        && !(1..=1000).contains(&r)
+        && !(1..=kflex_control::MAX_REPEATS).contains(&r)
     {
-        bail!("--repeats {r}: a scenario runs 1 to 1000 repeats");
+        bail!(
+            "--repeats {r}: a scenario runs 1 to {} repeats",
+            kflex_control::MAX_REPEATS
+        );
     }
     let mut grid = load(path)?;
     let file = (grid.seed, grid.repeats, grid.estimators.clone());
@@ -262,10 +265,16 @@ pub fn run(
             records: &rows,
         })
         .context("serialising results")?;
-        let path = write_atomic(dir, "results.json", &json)?;
-        println!("\nwrote {}", path.display());
-        let path = write_atomic(dir, "results.csv", &csv(&rows))?;
-        println!("wrote {}", path.display());
+        // the two are one result: written together or not at all
+        let paths = write_atomic_set(
+            dir,
+            &[
+                ("results.json", format!("{json}\n").as_bytes()),
+                ("results.csv", csv(&rows).as_bytes()),
+            ],
+        )?;
+        println!("\nwrote {}", paths[0].display());
+        println!("wrote {}", paths[1].display());
         if let Some(figures) = figures {
             // the results are written: a figure that fails is a warning
             let plots = dir.join("plots");

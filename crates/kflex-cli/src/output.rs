@@ -56,22 +56,136 @@ pub(crate) fn write_atomic(dir: &Path, name: &str, contents: &str) -> Result<Pat
 
 /// Writes the bytes `contents` to `dir/name` atomically, as [`write_atomic`].
 pub(crate) fn write_atomic_bytes(dir: &Path, name: &str, contents: &[u8]) -> Result<PathBuf> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let path = dir.join(name);
-    // a name of this process's and this call's own: two runs writing into
-    // one directory never write into each other's temporary file
+    let mut paths = write_atomic_set(dir, &[(name, contents)])?;
+    Ok(paths.remove(0))
+}
+
+/// A file name in `dir` of this process's and this call's own, from `name`
+/// and `tag`: two runs writing into one directory never touch each other's.
+fn own_name(dir: &Path, name: &str, tag: &str) -> PathBuf {
     static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let tmp = dir.join(format!(".{name}.{}-{call}.tmp", std::process::id()));
-    let write = || -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(contents)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, &path)
-    };
-    if let Err(e) = write() {
-        let _ = std::fs::remove_file(&tmp);
+    dir.join(format!(".{name}.{}-{call}.{tag}", std::process::id()))
+}
+
+/// Writes several files of `dir` (name, bytes) as one: every file is first
+/// written in full beside its place, then all are moved in. A failed write
+/// leaves every old file as it was; a failed move (rare: the files are in
+/// one folder) puts back the ones already moved, from links to the old
+/// files made before, so the set is never a mixture of two runs'.
+pub(crate) fn write_atomic_set(dir: &Path, files: &[(&str, &[u8])]) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let paths: Vec<PathBuf> = files.iter().map(|(name, _)| dir.join(name)).collect();
+    let mut temps: Vec<PathBuf> = Vec::with_capacity(files.len());
+    let cleanup = |temps: &[PathBuf]| temps.iter().for_each(|t| drop(std::fs::remove_file(t)));
+    for ((name, contents), path) in files.iter().zip(&paths) {
+        let tmp = own_name(dir, name, "tmp");
+        let written = (|| -> std::io::Result<()> {
+            let mut f = std::fs::File::create(&tmp)?;
+            f.write_all(contents)?;
+            f.sync_all()
+        })();
+        temps.push(tmp);
+        if let Err(e) = written {
+            cleanup(&temps);
+            return Err(e).with_context(|| format!("writing {}", path.display()));
+        }
+    }
+    // the old files kept under links of their own until all are moved in
+    // (with whether there was one: a file that cannot be linked stays)
+    let mut kept: Vec<(Option<PathBuf>, bool)> = Vec::with_capacity(files.len());
+    for ((name, _), path) in files.iter().zip(&paths) {
+        let link = own_name(dir, name, "old");
+        let linked = std::fs::hard_link(path, &link).is_ok();
+        kept.push((linked.then_some(link), path.exists()));
+    }
+    let mut moved = 0;
+    let mut failure = None;
+    for (tmp, path) in temps.iter().zip(&paths) {
+        if let Err(e) = std::fs::rename(tmp, path) {
+            failure = Some((e, path.clone()));
+            break;
+        }
+        moved += 1;
+    }
+    if let Some((e, path)) = failure {
+        for ((old, existed), path) in kept.iter().zip(&paths).take(moved) {
+            match old {
+                Some(old) => drop(std::fs::rename(old, path)),
+                None if !existed => drop(std::fs::remove_file(path)),
+                None => {}
+            }
+        }
+        cleanup(&temps[moved..]);
+        let links: Vec<PathBuf> = kept.into_iter().filter_map(|k| k.0).collect();
+        cleanup(&links);
         return Err(e).with_context(|| format!("writing {}", path.display()));
     }
-    Ok(path)
+    let links: Vec<PathBuf> = kept.into_iter().filter_map(|k| k.0).collect();
+    cleanup(&links);
+    Ok(paths)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("kflex-output-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    fn read(dir: &Path, name: &str) -> String {
+        std::fs::read_to_string(dir.join(name)).unwrap()
+    }
+
+    #[test]
+    fn a_set_of_files_is_written_whole_or_not_at_all() {
+        let dir = scratch("set");
+        write_atomic_set(&dir, &[("a.json", b"old a"), ("b.csv", b"old b")]).unwrap();
+        write_atomic_set(&dir, &[("a.json", b"new a"), ("b.csv", b"new b")]).unwrap();
+        assert_eq!(
+            (read(&dir, "a.json"), read(&dir, "b.csv")),
+            ("new a".into(), "new b".into())
+        );
+        assert_eq!(
+            names(&dir),
+            ["a.json", "b.csv"],
+            "no temporary file or link left"
+        );
+        // the second cannot be written (its folder is missing): the first is
+        // not replaced either
+        let e = write_atomic_set(&dir, &[("a.json", b"third a"), ("no/b.csv", b"third b")]);
+        assert!(format!("{:#}", e.unwrap_err()).contains("no/b.csv"));
+        assert_eq!(read(&dir, "a.json"), "new a");
+        assert_eq!(names(&dir), ["a.json", "b.csv"]);
+        // the second cannot be moved in (a folder holds its place): the first,
+        // already moved, is put back, and a file new to the folder removed
+        std::fs::remove_file(dir.join("b.csv")).unwrap();
+        std::fs::create_dir(dir.join("b.csv")).unwrap();
+        std::fs::write(dir.join("b.csv").join("inside"), "x").unwrap();
+        let e = write_atomic_set(
+            &dir,
+            &[
+                ("c.txt", b"fresh c"),
+                ("a.json", b"fourth a"),
+                ("b.csv", b"fourth b"),
+            ],
+        );
+        assert!(format!("{:#}", e.unwrap_err()).contains("b.csv"));
+        assert_eq!(read(&dir, "a.json"), "new a");
+        assert_eq!(names(&dir), ["a.json", "b.csv"], "c.txt taken out again");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

@@ -93,9 +93,9 @@ pub struct RunArgs {
     /// ibjae, lbhjae, lbhjae-adaptive), replacing the file's.
     #[arg(long, value_delimiter = ',', requires = "scenario")]
     estimators: Option<Vec<String>>,
-    /// With --scenario: threads running the grid's cases (default: one per
-    /// core; the results are the same for any count).
-    #[arg(long, requires = "scenario")]
+    /// With --scenario: threads running the grid's cases, 1 to 1024
+    /// (default: one per core; the results are the same for any count).
+    #[arg(long, requires = "scenario", value_parser = parse_jobs)]
     jobs: Option<usize>,
     /// With --scenario: a reduced grid for a fast look: each table's first
     /// and last case, one repeat, one period of the input.
@@ -237,6 +237,17 @@ struct Record {
 }
 
 /// Whether the flag `id` was given on the command line.
+/// The most threads `--jobs` may ask for.
+const MAX_JOBS: usize = 1024;
+
+/// `--jobs`: a thread count from 1 to [`MAX_JOBS`] (0 is no count of threads).
+fn parse_jobs(text: &str) -> std::result::Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if (1..=MAX_JOBS).contains(&n) => Ok(n),
+        _ => Err(format!("not a thread count from 1 to {MAX_JOBS}")),
+    }
+}
+
 fn self_given(args: &RunArgs, id: &str) -> bool {
     args.given.contains(&id)
 }

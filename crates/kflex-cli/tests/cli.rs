@@ -733,6 +733,12 @@ fn a_scenario_naming_what_cannot_run_is_refused_before_any_run() {
         "no case of the scenario is left",
     );
     assert_refused(&["run", "--jobs", "2"], "--scenario");
+    for jobs in ["0", "1025", "two"] {
+        assert_refused(
+            &["run", "--scenario", path, "--jobs", jobs],
+            "not a thread count from 1 to 1024",
+        );
+    }
     assert_refused(&["run", "--scenario", path, "--mcap"], "--out");
     assert_refused(
         &["run", "--scenario", "/nonexistent/kflex.toml"],
