@@ -87,6 +87,7 @@ pub fn save_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
 /// As [`save_databases`] for `dir` and for making that directory.
 pub fn check_database_dir(dir: &Path) -> Result<()> {
     let (fresh, _) = swap_names(dir)?;
+    refuse_subdirectories(dir)?;
     if let Some(p) = dir.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(p).map_err(|e| EstimateError::io(p, &e))?;
     }
@@ -122,6 +123,32 @@ fn swap_names(dir: &Path) -> Result<(PathBuf, PathBuf)> {
     Ok((sibling("new"), sibling("old")))
 }
 
+/// The error for a directory found inside the databases' directory, which
+/// is replaced whole.
+fn subdirectory(path: PathBuf) -> EstimateError {
+    EstimateError::Io {
+        path,
+        kind: std::io::ErrorKind::InvalidInput,
+        message: "a directory inside the databases' directory: move it out first (the \
+                  databases' directory is replaced whole)"
+            .into(),
+    }
+}
+
+/// Refuses a `dir` that holds a directory (none yet is fine).
+fn refuse_subdirectories(dir: &Path) -> Result<()> {
+    if !dir.is_dir() {
+        return Ok(());
+    }
+    for entry in std::fs::read_dir(dir).map_err(|e| EstimateError::io(dir, &e))? {
+        let path = entry.map_err(|e| EstimateError::io(dir, &e))?.path();
+        if path.is_dir() {
+            return Err(subdirectory(path));
+        }
+    }
+    Ok(())
+}
+
 fn write_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
     let (fresh, old) = swap_names(dir)?;
     let parent = dir.parent().filter(|p| !p.as_os_str().is_empty());
@@ -150,13 +177,7 @@ fn write_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
                     continue;
                 }
                 if path.is_dir() {
-                    return Err(EstimateError::Io {
-                        path,
-                        kind: std::io::ErrorKind::InvalidInput,
-                        message: "a directory inside the databases' directory: move it out \
-                                  first (the databases' directory is replaced whole)"
-                            .into(),
-                    });
+                    return Err(subdirectory(path));
                 }
                 let to = fresh.join(entry.file_name());
                 std::fs::copy(&path, &to).map_err(io(&path))?;

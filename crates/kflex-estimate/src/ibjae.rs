@@ -623,12 +623,16 @@ pub struct Ibjae {
 /// with either filter) would otherwise segment, embed and search the same
 /// regions of the same frame again. The first reader of a band reads it;
 /// the others, if they are readers of the same models and settings, take
-/// its reading. Clear it before each new frame.
+/// its reading. It knows the frame its readings are of (a hash of the
+/// frame's pixels and place) and forgets them when a reader brings another
+/// frame; [`FrameReads::clear`] forgets them at once.
 #[derive(Debug, Clone, Default)]
 pub struct FrameReads {
     /// The fingerprint of the readers whose readings these are (the first
     /// to read since the last clear).
     reader: Option<u64>,
+    /// The frame the readings are of ([`frame_key`]).
+    frame: Option<u64>,
     /// Each band read in this frame and what it read (`None`: no instrument).
     reads: Vec<(usize, Option<IbjaeReading>)>,
     /// Readings taken from here instead of read, since it was made.
@@ -646,6 +650,7 @@ impl FrameReads {
     /// taken stays).
     pub fn clear(&mut self) {
         self.reader = None;
+        self.frame = None;
         self.reads.clear();
     }
 
@@ -666,6 +671,30 @@ impl FrameReads {
     fn get(&self, band: usize) -> Option<Option<IbjaeReading>> {
         self.reads.iter().find(|r| r.0 == band).map(|r| r.1)
     }
+}
+
+/// A hash of `frame`'s pixels (row by row, eight bytes at a time), its size
+/// and its place in the camera's image: what tells [`FrameReads`] that a
+/// reader brings another frame. It reads every byte once (some 10 µs for a
+/// region of interest, a tenth of a per cent of a reading).
+fn frame_key(frame: &RgbView) -> u64 {
+    const K: u64 = 0x517c_c1b7_2722_0a95;
+    let mix = |h: u64, word: u64| (h.rotate_left(5) ^ word).wrapping_mul(K);
+    let mut h = [frame.width, frame.height, frame.x0, frame.y0]
+        .into_iter()
+        .fold(0, |h, v| mix(h, u64::from(v)));
+    let row = 3 * frame.width as usize;
+    for y in 0..frame.height as usize {
+        let pixels = &frame.data[y * frame.stride..y * frame.stride + row];
+        let mut words = pixels.chunks_exact(8);
+        for w in words.by_ref() {
+            h = mix(h, u64::from_le_bytes(w.try_into().unwrap_or([0; 8])));
+        }
+        let mut last = [0u8; 8];
+        last[..words.remainder().len()].copy_from_slice(words.remainder());
+        h = mix(h, u64::from_le_bytes(last));
+    }
+    h
 }
 
 impl Ibjae {
@@ -859,9 +888,9 @@ impl Ibjae {
     /// experiment's estimators sharing one run): a band that a reader of the
     /// same models and settings already read in this frame is taken from
     /// `reads`, the others are read and left there. The reading is the one
-    /// [`Ibjae::read`] gives, bit for bit. `reads` must be cleared
-    /// ([`FrameReads::clear`]) before each new frame; a reader of other
-    /// models or settings reads everything itself.
+    /// [`Ibjae::read`] gives, bit for bit. `reads` holds one frame's
+    /// readings: given another frame it forgets the last one's; a reader of
+    /// other models or settings reads everything itself.
     ///
     /// # Errors
     /// As [`Ibjae::read`].
@@ -881,6 +910,12 @@ impl Ibjae {
         mut reads: Option<&mut FrameReads>,
     ) -> Result<Option<IbjaeReading>> {
         if let Some(r) = reads.as_deref_mut() {
+            // readings of another frame are forgotten
+            let key = frame_key(frame);
+            if r.frame != Some(key) {
+                r.clear();
+                r.frame = Some(key);
+            }
             let mine = self.fingerprint();
             let theirs = *r.reader.get_or_insert(mine);
             if theirs != mine {

@@ -6,8 +6,8 @@
 use std::path::{Path, PathBuf};
 
 use kflex_estimate::{
-    EstimateError, Ibjae, Scnn, SegmentParams, build_databases, database_file, load_databases,
-    save_databases,
+    EstimateError, Ibjae, Scnn, SegmentParams, build_databases, check_database_dir, database_file,
+    load_databases, save_databases,
 };
 use kflex_model::{Camera, Instrument, Intrinsics, WorkingRegions};
 
@@ -176,14 +176,33 @@ fn saving_replaces_the_whole_directory_and_keeps_other_files() {
             }
             other => panic!("{}: expected refused, got {other:?}", target.display()),
         };
+    // asked before the work (`check_database_dir`), each is refused the same
+    let checked = |target: &std::path::Path| match check_database_dir(target) {
+        Err(EstimateError::Io { kind, .. }) => {
+            assert_eq!(
+                kind,
+                std::io::ErrorKind::InvalidInput,
+                "{}",
+                target.display()
+            );
+        }
+        other => panic!(
+            "{}: expected refused up front, got {other:?}",
+            target.display()
+        ),
+    };
     refused(&dir, &built[..1]);
+    checked(&dir);
     std::fs::remove_dir(&inside).unwrap();
+    check_database_dir(&dir).unwrap();
     let file = parent.join("a-file");
     std::fs::write(&file, "not a directory").unwrap();
     refused(&file, &built[..1]);
+    checked(&file);
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "not a directory");
     std::fs::remove_file(&file).unwrap();
     refused(&dir.join(".."), &built[..1]);
+    checked(&dir.join(".."));
     assert_eq!(load_databases(&dir, &camera).unwrap().len(), 2);
     // no bands is an error and leaves the directory as it was
     assert!(matches!(

@@ -585,7 +585,8 @@ fn pixels_no_pose_explains_are_no_hidden_part() {
 
 /// Readers of the same models and settings share a frame's readings band by
 /// band and read what each reads alone; a reader of other settings reads
-/// for itself; a cleared `FrameReads` holds nothing of the last frame.
+/// for itself; a cleared `FrameReads` holds nothing of the last frame, nor
+/// does one given another frame.
 #[test]
 fn readers_of_one_frame_share_its_readings_only_with_readers_like_them() {
     use kflex_estimate::FrameReads;
@@ -633,6 +634,34 @@ fn readers_of_one_frame_share_its_readings_only_with_readers_like_them() {
         );
         assert_eq!(other, unchecked.read(&view, &[0]).unwrap());
         assert!(other.unwrap().silhouette_iou.is_none());
+    }
+    // never cleared: a reader bringing another frame reads it, not the
+    // last frame's readings (the frames differ by their noise alone, then
+    // by the pose)
+    let mut kept = FrameReads::new();
+    for (theta, frame) in [(8.0, 0), (8.0, 1), (30.0, 1)] {
+        let shape = Instrument::kflex().shape(theta, 10.0).unwrap();
+        let params = FrameParams {
+            frame,
+            ..FrameParams::default()
+        };
+        let f = renderer.render(&camera, &shape, &params).unwrap();
+        let view = RgbView::packed(&f.rgb, f.width, f.height).unwrap();
+        let before = kept.taken();
+        let a = first.read_sharing(&view, &[0], &mut kept).unwrap();
+        assert_eq!(
+            kept.taken(),
+            before,
+            "θ = {theta}, frame {frame}: read, not taken"
+        );
+        assert_eq!(
+            a,
+            alone.read(&view, &[0]).unwrap(),
+            "θ = {theta}, frame {frame}"
+        );
+        // the same frame again is taken
+        let b = second.read_sharing(&view, &[0], &mut kept).unwrap();
+        assert_eq!((kept.taken(), b), (before + 1, a));
     }
 }
 
