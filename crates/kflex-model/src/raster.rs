@@ -5,11 +5,15 @@ use crate::camera::Camera;
 use crate::error::{ModelError, Result};
 use crate::instrument::{Ends, InstrumentShape, Part};
 use crate::mask::Mask;
+use crate::range::Bounds;
 use crate::roi::Roi;
 use nalgebra::{Point3, Vector3};
 
 /// Side of a coarse tile, px: each is culled against every body.
 const COARSE: u32 = 32;
+
+/// The most bodies a shape may have: a tile names its candidates in `u16`.
+pub const MAX_BODIES: usize = u16::MAX as usize;
 /// Side of a fine tile, px: each is culled against its coarse tile's bodies.
 const FINE: u32 = 8;
 
@@ -150,8 +154,9 @@ impl Rasterizer {
     ///
     /// # Errors
     /// [`ModelError::ImageSize`] when `mask` is not the camera's
-    /// `width × height`; as [`crate::Camera::validate`] for a bad camera.
-    /// Nothing is drawn then.
+    /// `width × height`; as [`crate::Camera::validate`] for a bad camera;
+    /// [`ModelError::OutOfRange`] for a shape of more than [`MAX_BODIES`]
+    /// bodies. Nothing is drawn then.
     pub fn silhouette(
         &mut self,
         camera: &Camera,
@@ -171,7 +176,9 @@ impl Rasterizer {
     /// # Errors
     /// As [`Roi::check_within`] for a window outside the image;
     /// [`ModelError::ImageSize`] when `mask` is not the window's size; as
-    /// [`crate::Camera::validate`] for a bad camera. Nothing is drawn then.
+    /// [`crate::Camera::validate`] for a bad camera;
+    /// [`ModelError::OutOfRange`] for a shape of more than [`MAX_BODIES`]
+    /// bodies. Nothing is drawn then.
     pub fn silhouette_window(
         &mut self,
         camera: &Camera,
@@ -180,6 +187,7 @@ impl Rasterizer {
         mask: &mut Mask,
     ) -> Result<()> {
         camera.validate()?;
+        Self::check_shape(shape)?;
         let k = &camera.intrinsics;
         window.check_within(k.width, k.height)?;
         if (mask.width(), mask.height()) != (window.width, window.height) {
@@ -208,6 +216,14 @@ impl Rasterizer {
                 }
             },
         );
+        Ok(())
+    }
+
+    /// Refuses a shape with more bodies than a tile's candidate list can
+    /// name ([`MAX_BODIES`]; the instrument's own shapes have a few dozen).
+    pub(crate) fn check_shape(shape: &InstrumentShape) -> Result<()> {
+        Bounds::closed(0.0, MAX_BODIES as f64)
+            .check("shape.bodies (count)", shape.bodies.len() as f64)?;
         Ok(())
     }
 
@@ -242,7 +258,7 @@ impl Rasterizer {
         self.optics.cover(camera, window);
         let (wx0, wy0) = (window.x0, window.y0);
         let (wx1, wy1) = (wx0 + window.width, wy0 + window.height);
-        let all = self.scene.bodies.len().min(usize::from(u16::MAX)) as u16;
+        let all = self.scene.bodies.len().min(MAX_BODIES) as u16;
         let mut cy = wy0 / COARSE * COARSE;
         while cy < wy1 {
             let mut cx = wx0 / COARSE * COARSE;

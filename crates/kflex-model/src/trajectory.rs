@@ -146,7 +146,8 @@ impl Trajectory {
     ///   [`ModelError::NonFinite`] for a NaN or infinite `phase_rad`;
     /// * `PeriodicSet`: `legs.len()` for no legs, `cycles_per_leg` outside
     ///   `[1, 1e6]`, a leg's `leg amplitude_deg` outside `[0, 360]` or
-    ///   `leg frequency_hz` outside `(0, 1000)`;
+    ///   `leg frequency_hz` outside `[1e-6, 1000)` (a slower leg's cycles
+    ///   would last an infinite time);
     /// * `BandLimited`: `min_deg` outside `[-360, 360]`, `max_deg` outside
     ///   `[min_deg, 360]`, `cutoff_hz` outside `[1e-6, 1000)`, `components`
     ///   outside `[1, 1024]`;
@@ -174,7 +175,7 @@ impl Trajectory {
                 let mut out = Vec::with_capacity(legs.len());
                 for &(amp, f) in legs {
                     Bounds::closed(0.0, 360.0).check("leg amplitude_deg", amp)?;
-                    Bounds::open(0.0, 1e3).check("leg frequency_hz", f)?;
+                    Bounds::closed_open(1e-6, 1e3).check("leg frequency_hz", f)?;
                     out.push((amp, f, t0));
                     t0 += f64::from(*cycles_per_leg) / f;
                 }
@@ -477,5 +478,18 @@ mod tests {
             seed: 0,
         };
         expect_range(bad.sampler(), "ramp_s");
+        // a leg so slow that its cycles' duration is infinite
+        let slow = Trajectory::PeriodicSet {
+            legs: vec![(10.0, 0.1), (10.0, 1e-320)],
+            cycles_per_leg: 2,
+        };
+        let e = expect_range(slow.sampler(), "leg frequency_hz");
+        assert_eq!(e.bounds.min, 1e-6);
+        let slowest = Trajectory::PeriodicSet {
+            legs: vec![(10.0, 1e-6)],
+            cycles_per_leg: 1_000_000,
+        };
+        let duration = slowest.sampler().unwrap().natural_duration_s().unwrap();
+        assert!(duration.is_finite() && duration > 0.0);
     }
 }

@@ -4,8 +4,8 @@
 //! bad input.
 
 use kflex_model::{
-    Camera, Ends, Instrument, InstrumentShape, Intrinsics, Lens, Mask, ModelError, RangeError,
-    Rasterizer, Roi,
+    Camera, Ends, Instrument, InstrumentShape, Intrinsics, Lens, MAX_BODIES, Mask, ModelError,
+    RangeError, Rasterizer, Roi,
 };
 use nalgebra::Point3;
 use rapier3d::math::{Pose, Rotation, Vector as PVec};
@@ -489,6 +489,32 @@ fn bad_input_is_a_typed_error() {
         range_of(Roi::for_workspace(&far, &instrument, &poses, 4)).name,
         "fx"
     );
+    // a shape built by hand with more bodies than a tile can name is refused
+    // (its extra bodies were skipped, so the far ones went undrawn), by the
+    // silhouettes and the scene alike
+    let mut crowded = shape.clone();
+    let last = *crowded.bodies.last().unwrap();
+    crowded.bodies.resize(MAX_BODIES + 1, last);
+    let camera = Camera::default();
+    let mut mask = Mask::new(640, 480).unwrap();
+    let e = range_of(Rasterizer::new().silhouette(&camera, &crowded, &mut mask));
+    assert_eq!(
+        (e.name, e.value),
+        ("shape.bodies (count)", (MAX_BODIES + 1) as f64)
+    );
+    assert_eq!(mask.count(), 0, "nothing drawn");
+    let e = range_of(kflex_model::SceneRenderer::new().render(
+        &camera,
+        &crowded,
+        &kflex_model::FrameParams::default(),
+    ));
+    assert_eq!(e.name, "shape.bodies (count)");
+    // as many as it can name still draw
+    crowded.bodies.truncate(MAX_BODIES);
+    Rasterizer::new()
+        .silhouette(&camera, &crowded, &mut mask)
+        .unwrap();
+    assert!(mask.count() > 0);
 }
 
 #[test]

@@ -274,7 +274,8 @@ impl SceneRenderer {
     ///
     /// # Errors
     /// [`crate::ModelError::OutOfRange`] naming the first parameter of `params`, of
-    /// `camera`'s intrinsics or of its lens out of its range.
+    /// `camera`'s intrinsics or of its lens out of its range, or a shape of
+    /// more than [`crate::MAX_BODIES`] bodies.
     pub fn render(
         &mut self,
         camera: &Camera,
@@ -303,6 +304,7 @@ impl SceneRenderer {
     ) -> Result<Frame> {
         params.validate()?;
         camera.validate()?;
+        Rasterizer::check_shape(shape)?;
         let k = camera.intrinsics;
         let (w, h) = (k.width, k.height);
         window.check_within(w, h)?;
