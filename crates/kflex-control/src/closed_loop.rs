@@ -463,6 +463,25 @@ pub struct RecordedFrame {
     pub truth_theta_a_deg: f64,
 }
 
+impl RecordedFrame {
+    /// Why the frame's pixels cannot be read as its window's, if they cannot:
+    /// a window wider or taller than [`kflex_model::MAX_IMAGE_SIDE`], or
+    /// pixels that do not fill it exactly.
+    #[must_use]
+    pub fn fill_error(&self) -> Option<String> {
+        let (w, h) = (self.window.width, self.window.height);
+        (w > kflex_model::MAX_IMAGE_SIDE
+            || h > kflex_model::MAX_IMAGE_SIDE
+            || self.rgb.len() as u128 != 3 * u128::from(w) * u128::from(h))
+        .then(|| {
+            format!(
+                "a recorded frame of {} bytes does not fill its {w}×{h} window",
+                self.rgb.len()
+            )
+        })
+    }
+}
+
 impl ClosedLoopTrace {
     /// RMSE of the estimate against the plant's true angle over the ticks
     /// that have one, deg.
@@ -645,7 +664,8 @@ impl ClosedLoopScenario {
             c.validate()?;
             // the compensator steps at most a second at a time
             // (`Compensator::step`), and would otherwise hold every tick
-            Bounds::open_closed(0.0, 1.0).check("dt_s", self.motion.dt_s)?;
+            Bounds::open_closed(0.0, crate::compensator::MAX_STEP_S)
+                .check("dt_s", self.motion.dt_s)?;
         }
         Ok(sampler)
     }
@@ -786,16 +806,8 @@ impl ClosedLoopScenario {
         let sampler = self.checked()?;
         let motion = &self.motion;
         let dt = motion.dt_s;
-        for f in frames {
-            let (w, h) = (f.window.width, f.window.height);
-            if f.rgb.len() as u128 != 3 * u128::from(w) * u128::from(h) {
-                return Err(crate::ControlError::Worker {
-                    message: format!(
-                        "a recorded frame of {} bytes does not fill its {w}×{h} window",
-                        f.rgb.len()
-                    ),
-                });
-            }
+        if let Some(message) = frames.iter().find_map(RecordedFrame::fill_error) {
+            return Err(crate::ControlError::Worker { message });
         }
         // each frame is built when it is handed over
         let image_of = |f: &RecordedFrame| -> Result<Frame> {

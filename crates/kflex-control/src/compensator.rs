@@ -10,6 +10,10 @@ use thiserror::Error;
 
 use crate::error::Result;
 
+/// The longest tick the compensator steps, s: a longer one holds the
+/// command ([`Fault::InvalidDt`]).
+pub const MAX_STEP_S: f64 = 1.0;
+
 /// The compensator's gains and limits. Angles in degrees, times in seconds.
 ///
 /// The defaults are tuned on kflex's plant (analytic joint, 100 Hz, a
@@ -380,7 +384,7 @@ impl Compensator {
         if !theta_d_deg.is_finite() {
             return self.hold(Fault::NonFiniteDesired { value: theta_d_deg }, false);
         }
-        if let Err(e) = Bounds::open_closed(0.0, 1.0).check("dt_s", dt_s) {
+        if let Err(e) = Bounds::open_closed(0.0, MAX_STEP_S).check("dt_s", dt_s) {
             return self.hold(Fault::InvalidDt(e), false);
         }
         let c = self.config;

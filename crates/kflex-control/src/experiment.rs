@@ -9,6 +9,9 @@ use serde::{Deserialize, Serialize};
 use crate::error::{ControlError, Result};
 use crate::metrics::{self, MeanStd};
 
+/// The most repeats a grid runs (the open-loop grid's and the scenario grid's).
+pub const MAX_REPEATS: u32 = 1000;
+
 /// One open-loop run's settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -288,7 +291,7 @@ impl OpenLoopGrid {
     /// # Ok::<(), kflex_control::ControlError>(())
     /// ```
     pub fn run(&self) -> Result<Vec<GridRow>> {
-        Bounds::closed(1.0, 1000.0).check("repeats", f64::from(self.repeats))?;
+        Bounds::closed(1.0, f64::from(MAX_REPEATS)).check("repeats", f64::from(self.repeats))?;
         Bounds::closed(0.0, 0.5).check("spread", self.spread)?;
         if self.sheaths_deg.is_empty() {
             return Err(ControlError::NotEnoughData {

@@ -19,7 +19,7 @@ use crate::closed_loop::{
     AngleEstimator, ClosedLoopScenario, ClosedLoopTrace, TickDetails, estimation_rmse_deg,
 };
 use crate::error::{ControlError, Result};
-use crate::experiment::RunMetrics;
+use crate::experiment::{MAX_REPEATS, RunMetrics};
 use crate::metrics::MeanStd;
 
 /// Tape over the instrument, as the paper names its cases.
@@ -305,7 +305,8 @@ impl ExperimentGrid {
     /// Checks every setting before any run.
     ///
     /// # Errors
-    /// [`ControlError::OutOfRange`] naming `repeats` (`[1, 1000]`), `spread`
+    /// [`ControlError::OutOfRange`] naming `repeats` (`[1,`
+    /// [`MAX_REPEATS`]`]`), `spread`
     /// (`[0, 0.5]`) or a case's `sheath_deg` (`[0, 3600]`);
     /// [`ControlError::NotEnoughData`] for no cases, estimators or
     /// backgrounds, or nothing to run (estimation cases with `none` alone);
@@ -313,7 +314,7 @@ impl ExperimentGrid {
     /// kind alone, or not at all (their logs and figures would share names);
     /// as [`ClosedLoopScenario::validate`].
     pub fn validate(&self) -> Result<()> {
-        Bounds::closed(1.0, 1000.0).check("repeats", f64::from(self.repeats))?;
+        Bounds::closed(1.0, f64::from(MAX_REPEATS)).check("repeats", f64::from(self.repeats))?;
         Bounds::closed(0.0, 0.5).check("spread", self.spread)?;
         for (what, n) in [
             ("at least one case", self.cases.len()),

@@ -100,7 +100,7 @@ pub use dataset::{
 pub use error::{ControlError, Result};
 #[cfg(feature = "estimators")]
 pub use estimators::IbjaeAlone;
-pub use experiment::{GridRow, OpenLoopGrid, OpenLoopScenario, RunMetrics, Trace};
+pub use experiment::{GridRow, MAX_REPEATS, OpenLoopGrid, OpenLoopScenario, RunMetrics, Trace};
 pub use grid::{
     Case, CaseKind, EstimatorKind, ExperimentGrid, GridRun, MakeEstimator, OcclusionCase, OnRun,
     Record, safe_file_name,

@@ -330,20 +330,12 @@ impl ClosedLoopTrace {
                 format!("the trace's series are not all {n} ticks long (one has {bad})"),
             ));
         }
-        for f in &self.camera_frames {
-            let (w, h) = (f.window.width, f.window.height);
-            if w > kflex_model::MAX_IMAGE_SIDE
-                || h > kflex_model::MAX_IMAGE_SIDE
-                || f.rgb.len() as u128 != 3 * u128::from(w) * u128::from(h)
-            {
-                return Err(log_error(
-                    path,
-                    format!(
-                        "a frame of {} bytes does not fill its {w}×{h} window",
-                        f.rgb.len()
-                    ),
-                ));
-            }
+        if let Some(message) = self
+            .camera_frames
+            .iter()
+            .find_map(RecordedFrame::fill_error)
+        {
+            return Err(log_error(path, message));
         }
         // a name of this process's and this call's own beside the log
         static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);

@@ -416,6 +416,14 @@ fn a_replay_over_the_read_log_gives_the_runs_estimates() {
         .replay(&mut GreenMeter::default(), &ticks, &broken)
         .unwrap_err();
     assert!(e.to_string().contains("does not fill"), "{e}");
+    // nor is one whose window is wider than any image (its byte count
+    // would overflow a smaller integer)
+    let mut wide = log.frames.clone();
+    wide[0].window.width = kflex_model::MAX_IMAGE_SIDE + 1;
+    let e = scenario
+        .replay(&mut GreenMeter::default(), &ticks, &wide)
+        .unwrap_err();
+    assert!(e.to_string().contains("does not fill"), "{e}");
     // a file that is not a log: an error naming it
     std::fs::write(dir.join("not.mcap"), b"hello").unwrap();
     let e = kflex_control::read_mcap(&dir.join("not.mcap")).unwrap_err();
