@@ -53,8 +53,9 @@ serde_class!(
         /// `ValueError` for an unreachable or non-finite length change.
         fn theta_rad_from_delta_l_a<'py>(&self, py: Python<'py>, delta_l_a_mm: &Bound<'py, PyAny>, max_theta_rad: f64) -> Result<Bound<'py, PyAny>> {
             let g = self.inner;
-            let theta = array::floats("delta_l_a_mm", delta_l_a_mm)?
-                .try_map(|dl| g.theta_rad_from_delta_l_a(dl, max_theta_rad))?;
+            let lengths = array::floats("delta_l_a_mm", delta_l_a_mm)?;
+            // a root search per element: without the interpreter lock
+            let theta = py.detach(|| lengths.try_map(|dl| g.theta_rad_from_delta_l_a(dl, max_theta_rad)))?;
             Ok(theta.into_py(py)?)
         }
     }

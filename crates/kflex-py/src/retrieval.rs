@@ -316,13 +316,10 @@ pub(crate) fn build_band_database_py(
 }
 
 /// Band databases from indexes (copies: an index stays usable in Python).
-fn band_databases(databases: &[PyRef<'_, PyFeatureIndex>]) -> Result<Vec<BandDatabase>> {
+fn band_databases(databases: &[&FeatureIndex]) -> kflex_estimate::Result<Vec<BandDatabase>> {
     databases
         .iter()
-        .map(|d| {
-            let copy = FeatureIndex::from_bytes(&d.inner.to_bytes())?;
-            Ok(BandDatabase::from_index(copy)?)
-        })
+        .map(|d| BandDatabase::from_index(FeatureIndex::from_bytes(&d.to_bytes())?))
         .collect()
 }
 
@@ -373,9 +370,12 @@ fn load_ibjae(
             )));
         }
     }
-    let bands = band_databases(databases)?;
     let segment = segment.map_or_else(SegmentParams::default, |p| p.inner);
+    // the databases are copied without the interpreter lock (a full range's
+    // are some 100 MB); the borrows of the Python objects stay held
+    let indexes: Vec<&FeatureIndex> = databases.iter().map(|d| &d.inner).collect();
     Ok(py.detach(|| {
+        let bands = band_databases(&indexes)?;
         let ibjae = Ibjae::new(Scnn::load(&scnn, threads)?, segment, bands)?;
         match check.camera {
             Some(c) => ibjae.with_silhouette_check(
