@@ -8,6 +8,8 @@ mod organs;
 mod sensor;
 mod shading;
 
+use std::sync::{Arc, Mutex, PoisonError};
+
 use serde::{Deserialize, Serialize};
 
 use crate::camera::Camera;
@@ -26,6 +28,62 @@ use shading::{Look, SteelLooks, Surroundings, tape_band, under_tape};
 
 /// What a cached background depends on: kind, tissue colour, seed, width, height.
 type BackgroundKey = (Background, Tissue, u64, u32, u32);
+
+/// A background as the scene uses it: linear-light RGB over the whole
+/// image, and its mean colour (the light the steel reflects from afar).
+#[derive(Debug)]
+struct Backdrop {
+    image: Vec<f32>,
+    mean: [f32; 3],
+}
+
+/// The backgrounds made last, shared by every renderer of the process
+/// (most recently used last): an experiment's runs make a renderer each,
+/// and their repeats draw the same few backgrounds, each 0.1 s to make at
+/// 640×480. At most [`SHARED_BACKDROP_BYTES`] are kept.
+static SHARED_BACKDROPS: Mutex<Vec<(BackgroundKey, Arc<Backdrop>)>> = Mutex::new(Vec::new());
+
+/// The most memory the shared backgrounds hold: seventeen at 640×480, none
+/// at 4K (a renderer still keeps its own).
+const SHARED_BACKDROP_BYTES: usize = 64 << 20;
+
+/// The background of `key`, from the shared ones or made (and shared).
+fn backdrop(key: BackgroundKey) -> Arc<Backdrop> {
+    let shared = || {
+        SHARED_BACKDROPS
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+    };
+    {
+        let mut kept = shared();
+        if let Some(i) = kept.iter().position(|e| e.0 == key) {
+            let entry = kept.remove(i);
+            let found = Arc::clone(&entry.1);
+            kept.push(entry);
+            return found;
+        }
+    }
+    // made outside the lock: another thread's lookups do not wait for it
+    let (kind, tissue, seed, w, h) = key;
+    // the tissue's look is made as the camera shows it; the scene works in
+    // linear light, which the camera's response encodes
+    let mut image = background::background(kind, tissue, seed, w, h);
+    image.iter_mut().for_each(|v| *v = linear_from_encoded(*v));
+    let mean = mean_colour(&image);
+    let made = Arc::new(Backdrop { image, mean });
+    let bytes = |b: &Backdrop| b.image.len() * std::mem::size_of::<f32>();
+    if bytes(&made) <= SHARED_BACKDROP_BYTES {
+        let mut kept = shared();
+        if !kept.iter().any(|e| e.0 == key) {
+            let mut total: usize = kept.iter().map(|e| bytes(&e.1)).sum();
+            while total + bytes(&made) > SHARED_BACKDROP_BYTES && !kept.is_empty() {
+                total -= bytes(&kept.remove(0).1);
+            }
+            kept.push((key, Arc::clone(&made)));
+        }
+    }
+    made
+}
 
 /// What a region's encoded background depends on: the background, the camera
 /// (its vignetting), the region and the illumination gain (its bits).
@@ -156,8 +214,11 @@ pub struct Frame {
 /// Renders frames, caching backgrounds.
 ///
 /// Backgrounds are generated from a seed ([`Background`]) and cached per
-/// (kind, seed, size) in a [`SceneRenderer`], so a frame costs the instrument's
-/// shading and the sensor model, not the texture synthesis.
+/// (kind, tissue, seed, size) in a [`SceneRenderer`], so a frame costs the
+/// instrument's shading and the sensor model, not the texture synthesis; the
+/// last ones made (up to 64 MB, seventeen at 640×480) are also shared by
+/// every renderer of the process, so that the runs of an experiment, a
+/// renderer each, make each background once.
 ///
 /// A frame is made in three passes over the window asked for (grown by the
 /// blur's reach and one pixel, so that a window's pixels equal the full
@@ -182,7 +243,7 @@ pub struct Frame {
 #[derive(Debug, Default)]
 pub struct SceneRenderer {
     raster: Rasterizer,
-    cache: Option<(BackgroundKey, Vec<f32>, [f32; 3])>,
+    cache: Option<(BackgroundKey, Arc<Backdrop>)>,
     /// Centre-ray hits of the last frame's work region, each with its pixel
     /// (full image), and per pixel of the region the index of its hit plus
     /// one (0: none).
@@ -313,13 +374,7 @@ impl SceneRenderer {
         }
         let key_bg = (params.background, params.tissue, params.seed, w, h);
         if self.cache.as_ref().map(|c| c.0) != Some(key_bg) {
-            // the tissue's look is made as the camera shows it; the scene
-            // works in linear light, which the camera's response encodes
-            let mut image =
-                background::background(params.background, params.tissue, params.seed, w, h);
-            image.iter_mut().for_each(|v| *v = linear_from_encoded(*v));
-            let env = mean_colour(&image);
-            self.cache = Some((key_bg, image, env));
+            self.cache = Some((key_bg, backdrop(key_bg)));
         }
         let reach = if params.blur_px > 0.0 {
             (3.0 * params.blur_px).ceil() as u32
@@ -368,7 +423,7 @@ impl SceneRenderer {
             * ((window.y0 - shaded_region.y0) as usize * sw
                 + (window.x0 - shaded_region.x0) as usize);
         let first = |y: usize| 3 * ((window.y0 as usize + y) * w as usize + window.x0 as usize);
-        let background = self.cache.as_ref().map_or(&[][..], |c| &c.1[..]);
+        let background = self.cache.as_ref().map_or(&[][..], |c| &c.1.image[..]);
         if params.blur_px <= 0.0 {
             // without blur a background pixel's encoded value is the same
             // every frame: kept per (background, camera, region, gain), so a
@@ -555,13 +610,14 @@ impl SceneRenderer {
         self.steel.clear();
         let k = camera.intrinsics;
         let (w, h) = (k.width as usize, k.height as usize);
-        let Some((_, background, mean)) = self.cache.as_ref() else {
+        let Some((_, backdrop)) = self.cache.as_ref() else {
             return;
         };
+        let background = &backdrop.image[..];
         let env = Surroundings {
             camera,
             image: background,
-            mean: *mean,
+            mean: backdrop.mean,
         };
         let rw = region.width as usize;
         let Self {
@@ -651,4 +707,49 @@ fn mean_colour(img: &[f32]) -> [f32; 3] {
     }
     let n = (img.len() / 3).max(1) as f64;
     sum.map(|s| (s / n) as f32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::instrument::Instrument;
+
+    /// Renderers share the backgrounds they make: a second renderer takes
+    /// the first one's (the same memory, so not made again), and the shared
+    /// ones stay within their budget, the least recently used going first.
+    #[test]
+    fn renderers_share_their_backgrounds_within_a_budget() {
+        let camera = Camera::default();
+        let shape = Instrument::kflex().shape(20.0, 10.0).unwrap();
+        // a seed no other test uses, so that this test's entries are its own
+        let params = FrameParams {
+            seed: 0x5eed_5ba2_ed00,
+            ..FrameParams::default()
+        };
+        let (mut a, mut b) = (SceneRenderer::new(), SceneRenderer::new());
+        let fa = a.render(&camera, &shape, &params).unwrap();
+        let fb = b.render(&camera, &shape, &params).unwrap();
+        assert_eq!(fa, fb);
+        let (ka, da) = a.cache.as_ref().unwrap();
+        let (kb, db) = b.cache.as_ref().unwrap();
+        assert_eq!(ka, kb);
+        assert!(Arc::ptr_eq(da, db), "the second renderer made its own");
+        // many more backgrounds than the budget holds
+        let (w, h) = (camera.intrinsics.width, camera.intrinsics.height);
+        let each = 3 * w as usize * h as usize * std::mem::size_of::<f32>();
+        let n = SHARED_BACKDROP_BYTES / each + 3;
+        for seed in 0..n as u64 {
+            let key = (Background::Stomach, Tissue::Organ, 0x5eed_0000 + seed, w, h);
+            let _ = backdrop(key);
+        }
+        let kept = SHARED_BACKDROPS.lock().unwrap();
+        let bytes: usize = kept.iter().map(|e| e.1.image.len() * 4).sum();
+        assert!(bytes <= SHARED_BACKDROP_BYTES, "{bytes}");
+        // the newest is kept, the first of the run is gone
+        let has = |seed: u64| {
+            kept.iter()
+                .any(|e| e.0 == (Background::Stomach, Tissue::Organ, 0x5eed_0000 + seed, w, h))
+        };
+        assert!(has(n as u64 - 1) && !has(0));
+    }
 }
