@@ -160,6 +160,36 @@ impl Case {
     }
 }
 
+impl Case {
+    /// Whether `self` and `other` are the same run, whatever their tables:
+    /// the same kind, sheath and tape (a grid runs it once for both).
+    #[must_use]
+    pub fn same_run(&self, other: &Case) -> bool {
+        self.kind == other.kind
+            && self.sheath_deg.to_bits() == other.sheath_deg.to_bits()
+            && self.occlusion == other.occlusion
+    }
+}
+
+/// The jobs grouped by run: each group the indices (in order, the first
+/// the earliest) of the jobs whose cases are the same run
+/// ([`Case::same_run`]) with the same estimators; groups in the order of
+/// their first job.
+fn same_runs(jobs: &[(&Case, Vec<EstimatorKind>)]) -> Vec<Vec<usize>> {
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (i, (case, estimators)) in jobs.iter().enumerate() {
+        let same = groups.iter_mut().find(|g| {
+            let (first, theirs) = &jobs[g[0]];
+            first.same_run(case) && theirs == estimators
+        });
+        match same {
+            Some(g) => g.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    groups
+}
+
 /// `name` with every character but ASCII letters, digits, `-` and `.` made `_`.
 #[must_use]
 pub fn safe_file_name(name: &str) -> String {
@@ -369,12 +399,16 @@ impl ExperimentGrid {
     /// per estimator, in `estimators`' order.
     fn run_case(
         &self,
-        case: &Case,
+        cases: &[&Case],
         estimators: &[EstimatorKind],
         make: &MakeEstimator<'_>,
         on_run: &OnRun<'_>,
         stop: &std::sync::atomic::AtomicBool,
-    ) -> Result<Vec<Record>> {
+    ) -> Result<Vec<Vec<Record>>> {
+        // the cases are one run (`Case::same_run`): the first one's
+        let Some(&case) = cases.first() else {
+            return Ok(Vec::new());
+        };
         let mut scenario = self.scenario.clone();
         scenario.frames.occlusion = case.occlusion.occlusion();
         scenario.compensator = match (case.kind, estimators) {
@@ -422,16 +456,18 @@ impl ExperimentGrid {
                 .iter()
                 .map(|d| &d[d.len().saturating_sub(evaluated)..])
                 .collect();
-            on_run(&GridRun {
-                case,
-                seed,
-                background,
-                scenario: &scenario,
-                estimators,
-                estimates: &estimates,
-                details: &details,
-                trace: &trace,
-            })?;
+            for &case in cases {
+                on_run(&GridRun {
+                    case,
+                    seed,
+                    background,
+                    scenario: &scenario,
+                    estimators,
+                    estimates: &estimates,
+                    details: &details,
+                    trace: &trace,
+                })?;
+            }
             match case.kind {
                 CaseKind::Estimation => {
                     for (out, estimate) in rmse.iter_mut().zip(&estimates) {
@@ -456,7 +492,7 @@ impl ExperimentGrid {
                 pick(|m| m.peak_loss_deg)?,
             ]),
         };
-        estimators
+        let records = estimators
             .iter()
             .zip(&rmse)
             .map(|(&estimator, rmse)| {
@@ -468,7 +504,20 @@ impl ExperimentGrid {
                     repeats: repeats.clone(),
                 })
             })
-            .collect()
+            .collect::<Result<Vec<_>>>()?;
+        // each case its own records, the same figures under its own table
+        Ok(cases
+            .iter()
+            .map(|&c| {
+                records
+                    .iter()
+                    .map(|r| Record {
+                        case: c.clone(),
+                        ..r.clone()
+                    })
+                    .collect()
+            })
+            .collect())
     }
 
     /// Runs every case with every estimator (an estimator named twice runs
@@ -514,11 +563,14 @@ impl ExperimentGrid {
 
     /// How many jobs the grid runs: an estimation case is one (its
     /// estimators share each run), a compensation case one per estimator;
-    /// an estimator named twice runs once. A run on more threads than this
-    /// leaves the rest idle.
+    /// an estimator named twice runs once, and cases of several tables that
+    /// are the same run (the paper's Tables V and VI both hold the straight
+    /// sheath without tape) run once for all of them. A run on more threads
+    /// than this leaves the rest idle.
     #[must_use]
     pub fn job_count(&self) -> usize {
-        self.jobs().len()
+        let jobs = self.jobs();
+        same_runs(&jobs).len()
     }
 
     /// The jobs: each case with the estimators on its runs.
@@ -563,6 +615,8 @@ impl ExperimentGrid {
         use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
         self.validate()?;
         let pairs = self.jobs();
+        // the jobs that are one run, run once: their indices in `pairs`
+        let runs = same_runs(&pairs);
         let results: Mutex<Vec<Option<Result<Vec<Record>>>>> =
             Mutex::new((0..pairs.len()).map(|_| None).collect());
         let (next, done, failed) = (
@@ -572,20 +626,32 @@ impl ExperimentGrid {
         );
         let worker = || {
             loop {
-                let i = next.fetch_add(1, Ordering::Relaxed);
-                if i >= pairs.len() || failed.load(Ordering::Relaxed) {
+                let k = next.fetch_add(1, Ordering::Relaxed);
+                if k >= runs.len() || failed.load(Ordering::Relaxed) {
                     return;
                 }
-                let (case, estimators) = &pairs[i];
-                let result = self.run_case(case, estimators, make, on_run, stop);
+                let members = &runs[k];
+                let cases: Vec<&Case> = members.iter().map(|&i| pairs[i].0).collect();
+                let estimators = &pairs[members[0]].1;
+                let result = self.run_case(&cases, estimators, make, on_run, stop);
                 failed.fetch_or(result.is_err(), Ordering::Relaxed);
                 if let Ok(mut r) = results.lock() {
-                    r[i] = Some(result);
+                    match result {
+                        Ok(records) => {
+                            for (&i, records) in members.iter().zip(records) {
+                                r[i] = Some(Ok(records));
+                            }
+                        }
+                        // the error in the first member's place (the
+                        // grid's order returns it before the others)
+                        Err(e) => r[members[0]] = Some(Err(e)),
+                    }
                 }
-                progress(done.fetch_add(1, Ordering::Relaxed) + 1, pairs.len());
+                let finished = done.fetch_add(members.len(), Ordering::Relaxed) + members.len();
+                progress(finished, pairs.len());
             }
         };
-        let jobs = jobs.clamp(1, pairs.len().max(1));
+        let jobs = jobs.clamp(1, runs.len().max(1));
         if jobs == 1 {
             worker();
         } else {

@@ -171,6 +171,82 @@ fn the_grid_runs_every_case_with_every_estimator() {
     assert_eq!(run(&grid, 2), (records, steps));
 }
 
+/// A case that two tables hold (the paper's Tables V and VI both hold the
+/// straight sheath without tape) is one run: made and run once, its figures
+/// under each table, each in its own place in the grid's order, and handed
+/// to `on_run` under each.
+#[test]
+fn a_case_two_tables_hold_runs_once() {
+    let mut grid = small();
+    let mut again = grid.cases[0].clone();
+    again.table = "VI".into();
+    let mut compensated = grid.cases[1].clone();
+    compensated.table = "IX".into();
+    // V, VIII, VI (V's case again), IX (VIII's case again)
+    grid.cases.push(again);
+    grid.cases.push(compensated);
+    // three runs (V and VI's; VIII and IX's, without and with KBJAE)
+    // where six jobs are listed
+    assert_eq!(grid.job_count(), 3);
+    let made = Mutex::new(0);
+    let make = |_kind: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
+        *made.lock().unwrap() += 1;
+        Ok(Box::new(NoisyTruth::new(1.0, 9)?))
+    };
+    let handed = Mutex::new(Vec::new());
+    let steps = Mutex::new(Vec::new());
+    for jobs in [1, 2] {
+        *made.lock().unwrap() = 0;
+        handed.lock().unwrap().clear();
+        steps.lock().unwrap().clear();
+        let records = grid
+            .run_with(
+                jobs,
+                &make,
+                &|done, total| steps.lock().unwrap().push((done, total)),
+                &|run| {
+                    handed
+                        .lock()
+                        .unwrap()
+                        .push((run.case.table.clone(), run.seed));
+                    Ok(())
+                },
+            )
+            .unwrap();
+        // KBJAE made once a repeat for V and VI's run, once a repeat for
+        // its compensation run: four, as without the copies
+        assert_eq!(*made.lock().unwrap(), 4, "{jobs} threads");
+        let tables: Vec<&str> = records.iter().map(|r| r.case.table.as_str()).collect();
+        assert_eq!(tables, ["V", "VIII", "VIII", "VI", "IX", "IX"]);
+        // the copies' figures are the originals'
+        for (copy, original) in [(3, 0), (4, 1), (5, 2)] {
+            let (a, b) = (&records[copy], &records[original]);
+            assert_eq!(
+                (a.estimator, a.rmse_deg, a.hysteresis, &a.repeats),
+                (b.estimator, b.rmse_deg, b.hysteresis, &b.repeats)
+            );
+            assert!(a.case.same_run(&b.case) && a.case != b.case);
+        }
+        // every run handed over under each table that holds it
+        let mut handed = handed.lock().unwrap().clone();
+        handed.sort();
+        let per_table = |t: &str| handed.iter().filter(|h| h.0 == t).count();
+        assert_eq!(
+            ["V", "VI", "VIII", "IX"].map(per_table),
+            [2, 2, 4, 4],
+            "{handed:?}"
+        );
+        // the progress counts the six jobs
+        let mut steps = steps.lock().unwrap().clone();
+        steps.sort_unstable();
+        assert_eq!(steps.last(), Some(&(6, 6)));
+    }
+    // the copies give the same records as the grid without them
+    let (alone, _) = run(&small(), 1);
+    let with = grid.run(1, &make, &|_, _| {}).unwrap();
+    assert_eq!(&with[..3], &alone[..]);
+}
+
 #[test]
 fn bad_settings_are_named_before_any_run() {
     let named = |grid: ExperimentGrid| {
