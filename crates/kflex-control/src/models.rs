@@ -5,25 +5,42 @@
 //! models will ship.
 
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, PoisonError};
 
 use crate::closed_loop::AngleEstimator;
 use crate::error::{ControlError, Result};
 use crate::estimators::IbjaeAlone;
 use crate::grid::EstimatorKind;
 use kflex_estimate::{
-    AdaptiveKalman, AdaptiveParams, DEFAULT_MIN_SILHOUETTE_IOU, Ibjae, KalmanParams, Kbjae, Lbhjae,
-    PaperKalman, Scnn, SegmentParams, load_databases,
+    AdaptiveKalman, AdaptiveParams, BandDatabase, DEFAULT_MIN_SILHOUETTE_IOU, Ibjae, KalmanParams,
+    Kbjae, Lbhjae, PaperKalman, Scnn, SegmentParams, load_databases,
 };
 use kflex_model::{Camera, Instrument};
 
 /// Where kflex's trained models ship, relative to the project's root.
 pub const MODELS_DIR: &str = "assets/models";
 
-/// A directory of trained models.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// A directory of trained models. The feature databases it loads are read
+/// once per camera and shared by every estimator it makes (a grid makes
+/// fresh estimators for each run); a new `ModelDir` reads the files again.
+#[derive(Debug, Clone)]
 pub struct ModelDir {
     dir: PathBuf,
+    /// The databases loaded so far, with the camera they were checked against.
+    loaded: Arc<Mutex<Vec<Loaded>>>,
 }
+
+/// Databases loaded by a [`ModelDir`], with the camera they were checked against.
+type Loaded = (Camera, Arc<[BandDatabase]>);
+
+impl PartialEq for ModelDir {
+    /// The same directory (whatever each has loaded).
+    fn eq(&self, other: &Self) -> bool {
+        self.dir == other.dir
+    }
+}
+
+impl Eq for ModelDir {}
 
 impl ModelDir {
     /// The models in `dir`.
@@ -31,6 +48,26 @@ impl ModelDir {
     pub fn new(dir: &Path) -> Self {
         Self {
             dir: dir.to_path_buf(),
+            loaded: Arc::default(),
+        }
+    }
+
+    /// The databases for `camera`: loaded (and checked) on the first ask,
+    /// shared after.
+    fn databases_for(&self, camera: &Camera) -> Result<Arc<[BandDatabase]>> {
+        let loaded = || self.loaded.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some((_, bands)) = loaded().iter().find(|(c, _)| c == camera) {
+            return Ok(Arc::clone(bands));
+        }
+        // read outside the lock; two threads asking at once may both read
+        let bands: Arc<[BandDatabase]> = Arc::from(load_databases(&self.databases(), camera)?);
+        let mut kept = loaded();
+        match kept.iter().find(|(c, _)| c == camera) {
+            Some((_, first)) => Ok(Arc::clone(first)),
+            None => {
+                kept.push((*camera, Arc::clone(&bands)));
+                Ok(bands)
+            }
         }
     }
 
@@ -75,10 +112,10 @@ impl ModelDir {
 
     fn ibjae(&self, camera: &Camera) -> Result<Ibjae> {
         let scnn = Scnn::load(&self.scnn(), 1)?;
-        let bands = load_databases(&self.databases(), camera)?;
+        let bands = self.databases_for(camera)?;
         // the databases are the nominal instrument's through `camera`
         Ok(
-            Ibjae::new(scnn, SegmentParams::default(), bands)?.with_silhouette_check(
+            Ibjae::new_shared(scnn, SegmentParams::default(), bands)?.with_silhouette_check(
                 camera,
                 &Instrument::kflex(),
                 DEFAULT_MIN_SILHOUETTE_IOU,

@@ -462,3 +462,50 @@ fn an_estimation_runs_ibjae_readers_read_each_frame_once_between_them() {
         }
     }
 }
+
+/// A model directory reads its databases once and shares them among the
+/// estimators it makes: with the files damaged after the first, it still
+/// makes IBJAE (and LBHJAE), reading alike; a new directory object reads
+/// the files again, and so fails.
+#[test]
+fn a_model_directory_reads_its_databases_once() {
+    use kflex_control::{EstimatorKind, ModelDir};
+    let dir = std::env::temp_dir().join(format!("kflex-models-once-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(data("kbjae_test.onnx"), dir.join("kbjae.onnx")).unwrap();
+    std::fs::copy(data("scnn_test.onnx"), dir.join("scnn.onnx")).unwrap();
+    // one band's database, as build-db writes them
+    let camera = Camera::default();
+    let mut scnn = Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
+    let band = WorkingBand {
+        poses: PoseRange {
+            theta_deg: [0.0, 50.0],
+            translation_mm: [10.0, 10.0],
+        },
+        roi: Roi::paper(&camera).unwrap(),
+    };
+    let db =
+        build_band_database(&mut scnn, &camera, &Instrument::kflex(), &band, 2.0, 1.0).unwrap();
+    kflex_estimate::save_databases(&dir.join("db"), &[db]).unwrap();
+    let models = ModelDir::new(&dir);
+    let mut first = models.make(EstimatorKind::Ibjae, &camera).unwrap();
+    let file = kflex_estimate::database_file(&dir.join("db"), 0);
+    std::fs::write(&file, b"not a database").unwrap();
+    let mut second = models.make(EstimatorKind::Ibjae, &camera).unwrap();
+    models.make(EstimatorKind::LbhjaeAdaptive, &camera).unwrap();
+    // both read the same
+    let (a, b) = (run(first.as_mut()).unwrap(), run(second.as_mut()).unwrap());
+    assert_eq!(a.theta_hat_deg, b.theta_hat_deg);
+    assert!(a.theta_hat_deg.iter().any(Option::is_some));
+    // a new directory object reads the files, and finds the damage
+    assert!(
+        ModelDir::new(&dir)
+            .make(EstimatorKind::Ibjae, &camera)
+            .is_err()
+    );
+    // and the same directory asked for another camera reads them too
+    let other = camera.with_intrinsics(kflex_model::Intrinsics::full_hd());
+    assert!(models.make(EstimatorKind::Ibjae, &other).is_err());
+    let _ = std::fs::remove_dir_all(&dir);
+}

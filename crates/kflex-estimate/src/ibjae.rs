@@ -81,6 +81,9 @@
 //! consistent set); keeping the retrieved pose where it is itself
 //! consistent made taped frames worse (6.58 / 8.66°).
 
+use std::hash::{Hash, Hasher};
+use std::sync::Arc;
+
 use kflex_model::{Camera, Instrument, InstrumentShape, Mask, Rasterizer, Roi, WorkingBand};
 
 use crate::error::{EstimateError, Result};
@@ -392,9 +395,35 @@ pub struct BandDatabase {
     pub index: FeatureIndex,
     distance_per_deg: f64,
     theta_step_deg: f64,
+    /// A hash of everything above, made once it is asked for
+    /// ([`BandDatabase::content_hash`]; only inside an [`Ibjae`], whose
+    /// databases no one changes).
+    content: std::sync::OnceLock<u64>,
 }
 
 impl BandDatabase {
+    /// A hash of the band, its calibration, its metadata, every feature and
+    /// every pose: what tells two readers' databases apart
+    /// ([`Ibjae::read_sharing`]). Made once, on the first ask.
+    fn content_hash(&self) -> u64 {
+        *self.content.get_or_init(|| {
+            let mut h = std::hash::DefaultHasher::new();
+            format!(
+                "{:?} {:?} {:?}",
+                self.band, self.distance_per_deg, self.theta_step_deg
+            )
+            .hash(&mut h);
+            self.index.metadata().hash(&mut h);
+            for f in self.index.features() {
+                f.to_bits().hash(&mut h);
+            }
+            for p in self.index.poses() {
+                (p.theta_deg.to_bits(), p.translation_mm.to_bits()).hash(&mut h);
+            }
+            h.finish()
+        })
+    }
+
     /// Reads the band and calibration from an index's metadata (as
     /// [`build_band_database`] writes them, or a loaded file has them).
     ///
@@ -471,6 +500,7 @@ impl BandDatabase {
             index,
             distance_per_deg: per_deg,
             theta_step_deg: grid[0],
+            content: std::sync::OnceLock::new(),
         })
     }
 }
@@ -608,7 +638,9 @@ pub(crate) fn check_camera(index: &FeatureIndex, expected: &str, path: &str) -> 
 pub struct Ibjae {
     scnn: Scnn,
     segmenter: Segmenter,
-    bands: Vec<BandDatabase>,
+    /// The databases, shared with other readers of the same files
+    /// ([`Ibjae::new_shared`]).
+    bands: Arc<[BandDatabase]>,
     crop: Vec<u8>,
     embedding: [f32; EMBEDDING_DIM],
     check: Option<SilhouetteCheck>,
@@ -718,10 +750,25 @@ impl Ibjae {
     /// was built with another model; [`EstimateError::EmptyIndex`] for no
     /// databases; as [`Segmenter::new`] for bad segmentation parameters.
     pub fn new(scnn: Scnn, segment: SegmentParams, bands: Vec<BandDatabase>) -> Result<Self> {
+        Self::new_shared(scnn, segment, Arc::from(bands))
+    }
+
+    /// [`Ibjae::new`] over databases shared with other readers (an
+    /// experiment's runs each make their estimators, which need not load
+    /// and hold the same databases again): no reading changes, as the
+    /// databases do not.
+    ///
+    /// # Errors
+    /// As [`Ibjae::new`].
+    pub fn new_shared(
+        scnn: Scnn,
+        segment: SegmentParams,
+        bands: Arc<[BandDatabase]>,
+    ) -> Result<Self> {
         if bands.is_empty() {
             return Err(EstimateError::EmptyIndex);
         }
-        for b in &bands {
+        for b in bands.iter() {
             let built = b
                 .index
                 .metadata()
@@ -775,7 +822,7 @@ impl Ibjae {
         kflex_model::Bounds::closed(0.0, 1.0).check("min_silhouette_iou", min_iou)?;
         camera.validate()?;
         let expected = camera_key(camera);
-        for b in &self.bands {
+        for b in self.bands.iter() {
             check_camera(&b.index, &expected, "feature database")?;
         }
         self.fingerprint = None;
@@ -820,7 +867,7 @@ impl Ibjae {
         self.check.as_ref().is_none_or(|c| {
             c.grid
                 .iter()
-                .zip(&self.bands)
+                .zip(self.bands.iter())
                 .all(|(g, db)| g.len() >= db.index.len())
         })
     }
@@ -1064,7 +1111,6 @@ impl Ibjae {
     /// (the model and its threads), segmentation settings, databases and
     /// silhouette check (a hash of them, made on the first shared read).
     fn fingerprint(&mut self) -> u64 {
-        use std::hash::{Hash, Hasher};
         if let Some(f) = self.fingerprint {
             return f;
         }
@@ -1076,19 +1122,8 @@ impl Ibjae {
             Some(c) => format!("{:?} {:?} {:?}", c.camera, c.instrument, c.min_iou).hash(&mut h),
             None => "no check".hash(&mut h),
         }
-        for b in &self.bands {
-            format!(
-                "{:?} {:?} {:?}",
-                b.band, b.distance_per_deg, b.theta_step_deg
-            )
-            .hash(&mut h);
-            b.index.metadata().hash(&mut h);
-            for f in b.index.features() {
-                f.to_bits().hash(&mut h);
-            }
-            for p in b.index.poses() {
-                (p.theta_deg.to_bits(), p.translation_mm.to_bits()).hash(&mut h);
-            }
+        for b in self.bands.iter() {
+            b.content_hash().hash(&mut h);
         }
         let f = h.finish();
         self.fingerprint = Some(f);
