@@ -162,10 +162,8 @@ fn saving_replaces_the_whole_directory_and_keeps_other_files() {
     // a directory inside, a file in its place, or no name of its own: refused
     let inside = dir.join("old-runs");
     std::fs::create_dir(&inside).unwrap();
-    let refused =
-        |target: &std::path::Path, bands: &[kflex_estimate::BandDatabase]| match save_databases(
-            target, bands,
-        ) {
+    let invalid =
+        |target: &std::path::Path, result: kflex_estimate::Result<()>, when: &str| match result {
             Err(EstimateError::Io { kind, .. }) => {
                 assert_eq!(
                     kind,
@@ -174,22 +172,17 @@ fn saving_replaces_the_whole_directory_and_keeps_other_files() {
                     target.display()
                 );
             }
-            other => panic!("{}: expected refused, got {other:?}", target.display()),
-        };
-    // asked before the work (`check_database_dir`), each is refused the same
-    let checked = |target: &std::path::Path| match check_database_dir(target) {
-        Err(EstimateError::Io { kind, .. }) => {
-            assert_eq!(
-                kind,
-                std::io::ErrorKind::InvalidInput,
-                "{}",
+            other => panic!(
+                "{}: expected refused {when}, got {other:?}",
                 target.display()
-            );
-        }
-        other => panic!(
-            "{}: expected refused up front, got {other:?}",
-            target.display()
-        ),
+            ),
+        };
+    let refused = |target: &std::path::Path, bands: &[kflex_estimate::BandDatabase]| {
+        invalid(target, save_databases(target, bands), "");
+    };
+    // asked before the work (`check_database_dir`), each is refused the same
+    let checked = |target: &std::path::Path| {
+        invalid(target, check_database_dir(target), "up front");
     };
     refused(&dir, &built[..1]);
     checked(&dir);
