@@ -56,8 +56,8 @@ pub(crate) fn write_atomic(dir: &Path, name: &str, contents: &str) -> Result<Pat
 
 /// Writes the bytes `contents` to `dir/name` atomically, as [`write_atomic`].
 pub(crate) fn write_atomic_bytes(dir: &Path, name: &str, contents: &[u8]) -> Result<PathBuf> {
-    let mut paths = write_atomic_set(dir, &[(name, contents)])?;
-    Ok(paths.remove(0))
+    let paths = write_atomic_set(dir, &[(name, contents)])?;
+    Ok(paths.into_iter().next().unwrap_or_else(|| dir.join(name)))
 }
 
 /// A file name in `dir` of this process's and this call's own, from `name`

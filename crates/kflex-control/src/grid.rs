@@ -158,9 +158,7 @@ impl Case {
             self.sheath_deg
         )
     }
-}
 
-impl Case {
     /// Whether `self` and `other` are the same run, whatever their tables:
     /// the same kind, sheath and tape (a grid runs it once for both).
     #[must_use]
