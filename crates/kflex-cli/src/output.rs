@@ -69,15 +69,18 @@ fn own_name(dir: &Path, name: &str, tag: &str) -> PathBuf {
 }
 
 /// Writes several files of `dir` (name, bytes) as one: every file is first
-/// written in full beside its place, then all are moved in. A failed write
-/// leaves every old file as it was; a failed move (rare: the files are in
-/// one folder) puts back the ones already moved, from links to the old
-/// files made before, so the set is never a mixture of two runs'.
+/// written in full beside its place, and every file it replaces is kept
+/// under a name of its own (a hard link, else a copy); only then are all
+/// moved in. A failed write, or an old file that cannot be kept, leaves
+/// every old file as it was; a failed move (rare: the files are in one
+/// folder) puts back the ones already replaced, so the set is never a
+/// mixture of two runs'. An old file that cannot be put back stays under
+/// the name the error gives.
 pub(crate) fn write_atomic_set(dir: &Path, files: &[(&str, &[u8])]) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let paths: Vec<PathBuf> = files.iter().map(|(name, _)| dir.join(name)).collect();
+    let remove = |paths: &[PathBuf]| paths.iter().for_each(|p| drop(std::fs::remove_file(p)));
     let mut temps: Vec<PathBuf> = Vec::with_capacity(files.len());
-    let cleanup = |temps: &[PathBuf]| temps.iter().for_each(|t| drop(std::fs::remove_file(t)));
     for ((name, contents), path) in files.iter().zip(&paths) {
         let tmp = own_name(dir, name, "tmp");
         let written = (|| -> std::io::Result<()> {
@@ -87,17 +90,26 @@ pub(crate) fn write_atomic_set(dir: &Path, files: &[(&str, &[u8])]) -> Result<Ve
         })();
         temps.push(tmp);
         if let Err(e) = written {
-            cleanup(&temps);
+            remove(&temps);
             return Err(e).with_context(|| format!("writing {}", path.display()));
         }
     }
-    // the old files kept under links of their own until all are moved in
-    // (with whether there was one: a file that cannot be linked stays)
-    let mut kept: Vec<(Option<PathBuf>, bool)> = Vec::with_capacity(files.len());
+    // every file to be replaced kept first (`None`: there is none)
+    let mut kept: Vec<Option<PathBuf>> = Vec::with_capacity(files.len());
     for ((name, _), path) in files.iter().zip(&paths) {
-        let link = own_name(dir, name, "old");
-        let linked = std::fs::hard_link(path, &link).is_ok();
-        kept.push((linked.then_some(link), path.exists()));
+        if std::fs::symlink_metadata(path).is_err() {
+            kept.push(None);
+            continue;
+        }
+        match keep_aside(dir, name, path) {
+            Ok(old) => kept.push(Some(old)),
+            Err(e) => {
+                remove(&temps);
+                remove(&kept.iter().flatten().cloned().collect::<Vec<_>>());
+                return Err(e)
+                    .with_context(|| format!("keeping {} before replacing it", path.display()));
+            }
+        }
     }
     let mut moved = 0;
     let mut failure = None;
@@ -108,22 +120,53 @@ pub(crate) fn write_atomic_set(dir: &Path, files: &[(&str, &[u8])]) -> Result<Ve
         }
         moved += 1;
     }
-    if let Some((e, path)) = failure {
-        for ((old, existed), path) in kept.iter().zip(&paths).take(moved) {
-            match old {
-                Some(old) => drop(std::fs::rename(old, path)),
-                None if !existed => drop(std::fs::remove_file(path)),
-                None => {}
+    let Some((e, path)) = failure else {
+        remove(&kept.into_iter().flatten().collect::<Vec<_>>());
+        return Ok(paths);
+    };
+    // put back what was replaced; an old file that will not go back stays
+    let mut stranded = Vec::new();
+    for (old, path) in kept.iter().zip(&paths).take(moved) {
+        match old {
+            Some(old) => {
+                if std::fs::rename(old, path).is_err() {
+                    stranded.push(format!(
+                        "the old {} is kept as {}",
+                        path.display(),
+                        old.display()
+                    ));
+                }
             }
+            None => drop(std::fs::remove_file(path)),
         }
-        cleanup(&temps[moved..]);
-        let links: Vec<PathBuf> = kept.into_iter().filter_map(|k| k.0).collect();
-        cleanup(&links);
-        return Err(e).with_context(|| format!("writing {}", path.display()));
     }
-    let links: Vec<PathBuf> = kept.into_iter().filter_map(|k| k.0).collect();
-    cleanup(&links);
-    Ok(paths)
+    remove(&temps[moved..]);
+    remove(&kept[moved..].iter().flatten().cloned().collect::<Vec<_>>());
+    let note = if stranded.is_empty() {
+        String::new()
+    } else {
+        format!(" ({})", stranded.join("; "))
+    };
+    Err(e).with_context(|| format!("writing {}{note}", path.display()))
+}
+
+/// Keeps the file `path` under a name of its own in `dir` (from `name`): a
+/// hard link, else (no links on this file system) a copy.
+fn keep_aside(dir: &Path, name: &str, path: &Path) -> std::io::Result<PathBuf> {
+    let mut last = None;
+    // a name a crashed run left behind is passed over
+    for _ in 0..64 {
+        let old = own_name(dir, name, "old");
+        if std::fs::symlink_metadata(&old).is_ok() {
+            continue;
+        }
+        match std::fs::hard_link(path, &old) {
+            Ok(()) => return Ok(old),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
+            Err(_) => return std::fs::copy(path, &old).map(|_| old),
+        }
+    }
+    Err(last.unwrap_or_else(|| std::io::Error::other("no free name to keep the old file under")))
 }
 
 #[cfg(test)]
@@ -170,8 +213,8 @@ mod tests {
         assert!(format!("{:#}", e.unwrap_err()).contains("no/b.csv"));
         assert_eq!(read(&dir, "a.json"), "new a");
         assert_eq!(names(&dir), ["a.json", "b.csv"]);
-        // the second cannot be moved in (a folder holds its place): the first,
-        // already moved, is put back, and a file new to the folder removed
+        // the second's old file cannot be kept (a folder holds its place):
+        // nothing is moved in, and a file new to the folder is not made
         std::fs::remove_file(dir.join("b.csv")).unwrap();
         std::fs::create_dir(dir.join("b.csv")).unwrap();
         std::fs::write(dir.join("b.csv").join("inside"), "x").unwrap();
@@ -183,9 +226,18 @@ mod tests {
                 ("b.csv", b"fourth b"),
             ],
         );
-        assert!(format!("{:#}", e.unwrap_err()).contains("b.csv"));
+        let message = format!("{:#}", e.unwrap_err());
+        assert!(
+            message.contains("keeping") && message.contains("b.csv"),
+            "{message}"
+        );
         assert_eq!(read(&dir, "a.json"), "new a");
-        assert_eq!(names(&dir), ["a.json", "b.csv"], "c.txt taken out again");
+        assert_eq!(read(&dir, "b.csv/inside"), "x");
+        assert_eq!(
+            names(&dir),
+            ["a.json", "b.csv"],
+            "no c.txt, temporary file or link"
+        );
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
