@@ -665,6 +665,58 @@ fn readers_of_one_frame_share_its_readings_only_with_readers_like_them() {
     }
 }
 
+/// Readers whose databases differ, by as little as one feature's last bit,
+/// do not share readings; readers over one shared set of databases, or
+/// over an equal copy of it, do.
+#[test]
+fn readers_of_other_databases_do_not_share() {
+    use kflex_estimate::{BandDatabase, FeatureIndex, FrameReads, IndexParams};
+    use std::sync::Arc;
+
+    let camera = Camera::default();
+    let base = ibjae(&camera);
+    let db = &base.bands()[0];
+    // the same database, one feature one bit off
+    let copy = |nudge: bool| {
+        let mut features = db.index.features().to_vec();
+        if nudge {
+            features[7] = f32::from_bits(features[7].to_bits() ^ 1);
+        }
+        let mut index = FeatureIndex::build(
+            &features,
+            db.index.dim(),
+            db.index.poses(),
+            IndexParams::default(),
+        )
+        .unwrap();
+        for (k, v) in db.index.metadata() {
+            index.set_metadata(k.clone(), v.clone());
+        }
+        BandDatabase::from_index(index).unwrap()
+    };
+    let scnn = || Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
+    let shared: Arc<[BandDatabase]> = Arc::from(vec![copy(false)]);
+    let mut readers = [
+        Ibjae::new_shared(scnn(), SegmentParams::default(), Arc::clone(&shared)).unwrap(),
+        Ibjae::new_shared(scnn(), SegmentParams::default(), shared).unwrap(),
+        Ibjae::new(scnn(), SegmentParams::default(), vec![copy(false)]).unwrap(),
+        Ibjae::new(scnn(), SegmentParams::default(), vec![copy(true)]).unwrap(),
+    ];
+    let shape = Instrument::kflex().shape(20.0, 10.0).unwrap();
+    let f = SceneRenderer::new()
+        .render(&camera, &shape, &FrameParams::default())
+        .unwrap();
+    let view = RgbView::packed(&f.rgb, f.width, f.height).unwrap();
+    let mut reads = FrameReads::new();
+    let mut taken = Vec::new();
+    for r in &mut readers {
+        r.read_sharing(&view, &[0], &mut reads).unwrap();
+        taken.push(reads.taken());
+    }
+    // the second and third take the first's reading; the nudged one does not
+    assert_eq!(taken, [0, 1, 2, 2]);
+}
+
 /// With two bands, readers asking for different and overlapping bands take
 /// the bands already read and read the others, and each reads what it
 /// reads alone: the best of its bands, whether taken or its own.
