@@ -236,7 +236,6 @@ struct Record {
     peak_loss_definition: &'static str,
 }
 
-/// Whether the flag `id` was given on the command line.
 /// The most threads `--jobs` may ask for.
 const MAX_JOBS: usize = 1024;
 
@@ -248,6 +247,7 @@ fn parse_jobs(text: &str) -> std::result::Result<usize, String> {
     }
 }
 
+/// Whether the flag `id` was given on the command line.
 fn self_given(args: &RunArgs, id: &str) -> bool {
     args.given.contains(&id)
 }

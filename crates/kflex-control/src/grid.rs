@@ -389,12 +389,14 @@ impl ExperimentGrid {
         self.scenario.validate()
     }
 
-    /// The runs of `case`, one per repeat, the plant drawn from the repeat's
-    /// seed; estimators made by `make` (called once per estimator and run).
-    /// An estimation case runs open loop, so its estimators share each run
-    /// ([`Fanout`]: the same plant, frames and losses); a compensation case
-    /// gets one estimator, `None` being the uncompensated plant. One record
-    /// per estimator, in `estimators`' order.
+    /// The runs of `cases` (one case, or several tables' copies of it:
+    /// [`Case::same_run`]), one per repeat, the plant drawn from the
+    /// repeat's seed; estimators made by `make` (called once per estimator
+    /// and run). An estimation case runs open loop, so its estimators share
+    /// each run ([`Fanout`]: the same plant, frames and losses); a
+    /// compensation case gets one estimator, `None` being the uncompensated
+    /// plant. Each run is handed to `on_run` once per case; for each case,
+    /// one record per estimator, in `estimators`' order.
     fn run_case(
         &self,
         cases: &[&Case],
@@ -523,9 +525,12 @@ impl ExperimentGrid {
     /// order whatever the count, and are the same); `make` builds a fresh estimator of a kind for each run
     /// (the paper's are loaded from their model files; see the feature
     /// `estimators`). An estimation case's estimators share its runs (the
-    /// issue: all estimators on the same run). `progress` is called after
-    /// each job (an estimation case, or a compensation case with one
-    /// estimator) with the count done and the total.
+    /// issue: all estimators on the same run), and a case that several
+    /// tables hold runs once for all of them ([`ExperimentGrid::job_count`]).
+    /// `progress` is called as jobs finish (an estimation case, or a
+    /// compensation case with one estimator; the copies of a case finish
+    /// with it) with the count of jobs done and their total, which counts
+    /// the copies.
     ///
     /// # Errors
     /// Every setting is checked first ([`ExperimentGrid::validate`]); then a

@@ -171,13 +171,15 @@ fn write_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
             for entry in std::fs::read_dir(dir).map_err(io(dir))? {
                 let entry = entry.map_err(io(dir))?;
                 let path = entry.path();
+                // a directory first, whatever its name (`archive.kfdb/` is
+                // not a database and would go with the old directory)
+                if path.is_dir() {
+                    return Err(subdirectory(path));
+                }
                 let ours = path.extension().and_then(|e| e.to_str()) == Some(DATABASE_EXT)
                     || entry.file_name() == MANIFEST;
                 if ours {
                     continue;
-                }
-                if path.is_dir() {
-                    return Err(subdirectory(path));
                 }
                 let to = fresh.join(entry.file_name());
                 std::fs::copy(&path, &to).map_err(io(&path))?;

@@ -187,6 +187,18 @@ fn saving_replaces_the_whole_directory_and_keeps_other_files() {
     refused(&dir, &built[..1]);
     checked(&dir);
     std::fs::remove_dir(&inside).unwrap();
+    // a directory named like a database is a directory all the same (it
+    // would have gone with the old databases, and what it held with it)
+    let named = dir.join("archive.kfdb");
+    std::fs::create_dir(&named).unwrap();
+    std::fs::write(named.join("kept.txt"), "mine").unwrap();
+    refused(&dir, &built[..1]);
+    checked(&dir);
+    assert_eq!(
+        std::fs::read_to_string(named.join("kept.txt")).unwrap(),
+        "mine"
+    );
+    std::fs::remove_dir_all(&named).unwrap();
     check_database_dir(&dir).unwrap();
     let file = parent.join("a-file");
     std::fs::write(&file, "not a directory").unwrap();

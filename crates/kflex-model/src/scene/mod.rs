@@ -43,7 +43,7 @@ struct Backdrop {
 /// 640×480. At most [`SHARED_BACKDROP_BYTES`] are kept.
 static SHARED_BACKDROPS: Mutex<Vec<(BackgroundKey, Arc<Backdrop>)>> = Mutex::new(Vec::new());
 
-/// The most memory the shared backgrounds hold: seventeen at 640×480, none
+/// The most memory the shared backgrounds hold: eighteen at 640×480, none
 /// at 4K (a renderer still keeps its own).
 const SHARED_BACKDROP_BYTES: usize = 64 << 20;
 
@@ -216,7 +216,7 @@ pub struct Frame {
 /// Backgrounds are generated from a seed ([`Background`]) and cached per
 /// (kind, tissue, seed, size) in a [`SceneRenderer`], so a frame costs the
 /// instrument's shading and the sensor model, not the texture synthesis; the
-/// last ones made (up to 64 MB, seventeen at 640×480) are also shared by
+/// last ones made (up to 64 MB, eighteen at 640×480) are also shared by
 /// every renderer of the process, so that the runs of an experiment, a
 /// renderer each, make each background once.
 ///
