@@ -414,23 +414,11 @@ impl BandDatabase {
         h.word(about.finish());
         let features = self.index.features();
         h.word(features.len() as u64);
-        let pair = |p: &[f32]| {
+        h.slice::<_, 2>(features, |p| {
             let lo = p.first().map_or(0, |f| u64::from(f.to_bits()));
             let hi = p.get(1).map_or(0, |f| u64::from(f.to_bits()));
             lo | (hi << 32)
-        };
-        let mut blocks = features.chunks_exact(8);
-        for b in blocks.by_ref() {
-            h.words([
-                pair(&b[0..2]),
-                pair(&b[2..4]),
-                pair(&b[4..6]),
-                pair(&b[6..8]),
-            ]);
-        }
-        for p in blocks.remainder().chunks(2) {
-            h.word(pair(p));
-        }
+        });
         for p in self.index.poses() {
             h.word(p.theta_deg.to_bits());
             h.word(p.translation_mm.to_bits());
@@ -725,11 +713,6 @@ impl FrameReads {
 /// the paper's Table V grid (three readers a frame) it takes about 1 % of
 /// the run's time; one lane took 4 %.
 fn frame_key(frame: &RgbView) -> u64 {
-    let word = |b: &[u8]| {
-        let mut w = [0u8; 8];
-        w[..b.len()].copy_from_slice(b);
-        u64::from_le_bytes(w)
-    };
     let mut h = LaneHash::new();
     for v in [frame.width, frame.height, frame.x0, frame.y0] {
         h.word(u64::from(v));
@@ -737,19 +720,12 @@ fn frame_key(frame: &RgbView) -> u64 {
     let row = 3 * frame.width as usize;
     for y in 0..frame.height as usize {
         let pixels = &frame.data[y * frame.stride..y * frame.stride + row];
-        let mut blocks = pixels.chunks_exact(32);
-        for b in blocks.by_ref() {
-            h.words([
-                word(&b[0..8]),
-                word(&b[8..16]),
-                word(&b[16..24]),
-                word(&b[24..32]),
-            ]);
-        }
-        // the row's last bytes (and its end, so rows cannot slide into each other)
-        for w in blocks.remainder().chunks(8) {
-            h.word(word(w));
-        }
+        h.slice::<_, 8>(pixels, |b| {
+            let mut w = [0u8; 8];
+            w[..b.len()].copy_from_slice(b);
+            u64::from_le_bytes(w)
+        });
+        // the row's end, so rows cannot slide into each other
         h.word(y as u64);
     }
     h.finish()
@@ -785,6 +761,23 @@ impl LaneHash {
     /// One word, into the first lane.
     fn word(&mut self, word: u64) {
         self.lanes[0] = Self::mix(self.lanes[0], word);
+    }
+
+    /// `items`, `N` to a word (`word` makes one of up to `N` items), four
+    /// words a step; the last items' words into the first lane.
+    fn slice<T, const N: usize>(&mut self, items: &[T], word: impl Fn(&[T]) -> u64) {
+        let mut blocks = items.chunks_exact(4 * N);
+        for b in blocks.by_ref() {
+            self.words([
+                word(&b[..N]),
+                word(&b[N..2 * N]),
+                word(&b[2 * N..3 * N]),
+                word(&b[3 * N..]),
+            ]);
+        }
+        for w in blocks.remainder().chunks(N) {
+            self.word(word(w));
+        }
     }
 
     fn finish(self) -> u64 {

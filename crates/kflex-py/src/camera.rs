@@ -203,6 +203,15 @@ pub struct PyCamera {
     pub(crate) inner: Camera,
 }
 
+impl PyCamera {
+    /// Takes `next` where it is valid, else stays as it is (`RangeError`).
+    fn replace(&mut self, next: Camera) -> Result<()> {
+        next.validate()?;
+        self.inner = next;
+        Ok(())
+    }
+}
+
 #[pymethods]
 impl PyCamera {
     /// At the centre of the overtube's face, looking along it; the default
@@ -231,11 +240,10 @@ impl PyCamera {
     /// Raises `RangeError` (the camera unchanged) for intrinsics out of range.
     #[setter]
     fn set_intrinsics(&mut self, k: PyIntrinsics) -> Result<()> {
-        let mut next = self.inner;
-        next.intrinsics = k.inner;
-        next.validate()?;
-        self.inner = next;
-        Ok(())
+        self.replace(Camera {
+            intrinsics: k.inner,
+            ..self.inner
+        })
     }
 
     /// Lens (a copy).
@@ -247,11 +255,10 @@ impl PyCamera {
     /// Raises `RangeError` (the camera unchanged) for a lens out of range.
     #[setter]
     fn set_lens(&mut self, lens: PyLens) -> Result<()> {
-        let mut next = self.inner;
-        next.lens = lens.inner;
-        next.validate()?;
-        self.inner = next;
-        Ok(())
+        self.replace(Camera {
+            lens: lens.inner,
+            ..self.inner
+        })
     }
 
     /// `camera_from_overtube` as a 4×4 homogeneous matrix (mm).
