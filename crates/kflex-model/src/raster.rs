@@ -336,24 +336,55 @@ impl Rasterizer {
                 lanes.cast(&scene.bodies, candidates, wide);
                 let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y)));
                 for (k, (x, y)) in pixels.enumerate() {
-                    if lanes.t[k] < f64::INFINITY {
-                        let d = Vector3::new(lanes.dx[k], lanes.dy[k], lanes.dz[k]);
-                        let s = if lanes.s[k] == 0.0 {
-                            Surface::Side
-                        } else if lanes.s[k] == 1.0 {
-                            Surface::EndA
-                        } else {
-                            Surface::EndB
-                        };
-                        f(
-                            x,
-                            y,
-                            scene.surface_hit(&d, lanes.t[k], lanes.u[k], s, lanes.i[k] as usize),
-                        );
+                    if let Some(hit) = lanes.hit(scene, k) {
+                        f(x, y, hit);
                     }
                 }
             },
         );
+    }
+}
+
+/// Rays through any pixel positions, cast a batch at a time as a fine
+/// tile's centre rays are ([`Rasterizer::centre_hits`]): to the hits of
+/// [`Scene::first_hit`], bit for bit.
+#[derive(Debug, Clone)]
+pub(crate) struct RayBatch {
+    lanes: Lanes,
+    wide: bool,
+}
+
+impl Default for RayBatch {
+    fn default() -> Self {
+        Self {
+            lanes: Lanes::default(),
+            wide: Lanes::wide(),
+        }
+    }
+}
+
+impl RayBatch {
+    /// Casts the ray through each pixel position of `points` against the
+    /// bodies `candidates` (nearest first, as a tile lists them) and calls
+    /// `f(k, hit, d)` for each, in order: `hit` where the ray `d` meets one
+    /// first ([`Scene::first_hit`]'s).
+    pub(crate) fn first_hits(
+        &mut self,
+        camera: &Camera,
+        scene: &Scene,
+        candidates: &[u16],
+        points: &[(f64, f64)],
+        mut f: impl FnMut(usize, Option<SurfaceHit>, &Vector3<f64>),
+    ) {
+        let lanes = &mut self.lanes;
+        for (c, chunk) in points.chunks(TILE_RAYS).enumerate() {
+            lanes.load_points(camera, chunk);
+            lanes.cast(&scene.bodies, candidates, self.wide);
+            for k in 0..chunk.len() {
+                let d = Vector3::new(lanes.dx[k], lanes.dy[k], lanes.dz[k]);
+                f(c * TILE_RAYS + k, lanes.hit(scene, k), &d);
+            }
+        }
     }
 }
 
@@ -430,6 +461,40 @@ impl Lanes {
         self.pv[n..].fill(f64::NAN);
         self.t[..n].fill(f64::INFINITY);
         self.t[n..].fill(f64::NEG_INFINITY);
+    }
+
+    /// The rays through the pixel positions `points` (at most
+    /// [`TILE_RAYS`]), each as [`unit_ray`] makes it, with no hit yet; the
+    /// lanes past them as [`Lanes::load`] leaves its.
+    fn load_points(&mut self, camera: &Camera, points: &[(f64, f64)]) {
+        let n = points.len().min(TILE_RAYS);
+        for (k, &(u, v)) in points.iter().take(n).enumerate() {
+            let d = unit_ray(camera, u, v);
+            (self.dx[k], self.dy[k], self.dz[k]) = (d.x, d.y, d.z);
+            (self.pu[k], self.pv[k]) = (u, v);
+        }
+        self.pu[n..].fill(f64::NAN);
+        self.pv[n..].fill(f64::NAN);
+        self.t[..n].fill(f64::INFINITY);
+        self.t[n..].fill(f64::NEG_INFINITY);
+    }
+
+    /// Lane `k`'s first hit after [`Lanes::cast`], if its ray met a body.
+    #[inline]
+    fn hit(&self, scene: &Scene, k: usize) -> Option<SurfaceHit> {
+        match self.t.get(k) {
+            Some(&t) if t < f64::INFINITY => {}
+            _ => return None,
+        }
+        let d = Vector3::new(self.dx[k], self.dy[k], self.dz[k]);
+        let s = if self.s[k] == 0.0 {
+            Surface::Side
+        } else if self.s[k] == 1.0 {
+            Surface::EndA
+        } else {
+            Surface::EndB
+        };
+        Some(scene.surface_hit(&d, self.t[k], self.u[k], s, self.i[k] as usize))
     }
 
     /// Casts every lane against the bodies `candidates` (nearest first),
@@ -841,8 +906,9 @@ impl CameraBody {
     }
 
     /// The first hit of the ray from the origin along unit `d`: its
-    /// distance, the axial parameter in `[0, 1]` and the surface.
-    #[inline(always)]
+    /// distance, the axial parameter in `[0, 1]` and the surface (the
+    /// reference of the lanes' cast).
+    #[cfg(test)]
     fn hit(&self, d: &Vector3<f64>) -> Option<(f64, f64, Surface)> {
         let mut best: Option<(f64, f64, Surface)> = None;
         let mut keep = |t: f64, u: f64, s: Surface| {
@@ -966,7 +1032,9 @@ impl Scene {
     }
 
     /// The first body among `candidates` the ray through pixel position
-    /// `(u, v)` meets, and the ray.
+    /// `(u, v)` meets, and the ray: one ray at a time, the reference
+    /// [`RayBatch`] and the tiles' lanes are held to.
+    #[cfg(test)]
     pub(crate) fn first_hit(
         &self,
         camera: &Camera,
@@ -979,7 +1047,8 @@ impl Scene {
     }
 
     /// The first body among `candidates` the ray along unit `d`, through
-    /// pixel position `(u, v)`, meets.
+    /// pixel position `(u, v)`, meets (the reference, as [`Scene::first_hit`]).
+    #[cfg(test)]
     pub(crate) fn first_hit_along(
         &self,
         candidates: &[u16],
@@ -1147,6 +1216,65 @@ mod tests {
             }
         }
         assert!(in_windows > 100, "{in_windows}");
+    }
+
+    /// Rays through any pixel positions, cast a batch at a time (more than
+    /// a batch holds, and part of one), meet what a lone ray meets, bit for
+    /// bit: the four rays inside each pixel that shade the edges.
+    #[test]
+    fn a_batch_of_rays_meets_what_lone_rays_meet() {
+        let camera = Camera::default();
+        let mut raster = Rasterizer::new();
+        let mut batch = RayBatch::default();
+        let (mut hits, mut misses) = (0, 0);
+        for (theta, d) in [(-80.0, 8.0), (0.0, 10.0), (60.0, 30.0)] {
+            let shape = Instrument::kflex().shape(theta, d).expect("shape");
+            raster.prepare(&camera, &shape);
+            let k = camera.intrinsics;
+            raster.tiles(
+                &camera,
+                Roi::whole(k.width, k.height),
+                |scene, _, [x0, y0, x1, y1], bodies| {
+                    let points: Vec<(f64, f64)> = (y0..y1)
+                        .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+                        .flat_map(|(x, y)| {
+                            [(0.125, 0.875), (0.625, 0.375), (0.5, 0.5)]
+                                .map(|(dx, dy)| (f64::from(x) + dx, f64::from(y) + dy))
+                        })
+                        .take(100 + (x0 % 3) as usize * 40)
+                        .collect();
+                    let mut seen = 0;
+                    batch.first_hits(&camera, scene, bodies, &points, |i, hit, d| {
+                        assert_eq!(i, seen);
+                        seen += 1;
+                        let (u, v) = points[i];
+                        let (lone, ld) = scene.first_hit(&camera, bodies, u, v);
+                        assert_eq!(d.map(f64::to_bits), ld.map(f64::to_bits));
+                        let bits = |h: &SurfaceHit| {
+                            (
+                                h.t.to_bits(),
+                                h.body,
+                                h.normal.map(f64::to_bits),
+                                h.arc_mm.to_bits(),
+                                h.on_end,
+                            )
+                        };
+                        assert_eq!(
+                            hit.as_ref().map(bits),
+                            lone.as_ref().map(bits),
+                            "θ = {theta}, d = {d}, ({u}, {v})"
+                        );
+                        if hit.is_some() {
+                            hits += 1;
+                        } else {
+                            misses += 1;
+                        }
+                    });
+                    assert_eq!(seen, points.len());
+                },
+            );
+        }
+        assert!(hits > 1000 && misses > 1000, "{hits} {misses}");
     }
 
     /// The AVX2 copy of the lane cast gives the portable one's bits, lane

@@ -17,14 +17,14 @@ use crate::error::Result;
 use crate::instrument::InstrumentShape;
 use crate::mask::Mask;
 use crate::range::Bounds;
-use crate::raster::{Rasterizer, SurfaceHit};
+use crate::raster::{Rasterizer, RayBatch, SurfaceHit};
 use crate::roi::Roi;
 use crate::working::WorkingRegions;
 pub use background::{Background, Tissue};
 use sensor::{
     Normals, Response, Sensor, gaussian_blur, linear_from_encoded, normal_table, response_table,
 };
-use shading::{Look, SteelLooks, Surroundings, tape_band, under_tape};
+use shading::{LookQueue, Surroundings, tape_band, under_tape};
 
 /// What a cached background depends on: kind, tissue colour, seed, width, height.
 type BackgroundKey = (Background, Tissue, u64, u32, u32);
@@ -268,12 +268,13 @@ pub struct SceneRenderer {
     patches: Vec<(u32, [f32; 3])>,
     /// The encoded background values a frame's patches covered, to put back.
     undo: Vec<[f32; 3]>,
-    /// The looks of a frame's patches, in order: one a pixel, four an edge's.
-    looks: Vec<Look>,
-    /// Per patch: whether it is an edge's (four looks).
-    edges: Vec<bool>,
-    /// The steel among a frame's looks, made after the tiles are walked.
-    steel: SteelLooks,
+    /// The looks of a frame's patches, queued and made a batch at a time.
+    queue: Box<LookQueue>,
+    /// A tile's edge pixels (their patch and background colour) and the
+    /// pixel positions of their four rays each, cast together by `rays`.
+    edge_pixels: Vec<(u32, [f32; 3])>,
+    edge_points: Vec<(f64, f64)>,
+    rays: Box<RayBatch>,
     /// One row of encoded values.
     row: Vec<f32>,
     /// The camera's response (`sensor::response_table`), once made.
@@ -605,9 +606,6 @@ impl SceneRenderer {
     /// instrument shaded, edges anti-aliased over the background).
     fn shade(&mut self, camera: &Camera, region: Roi, work: Roi, band: Option<(f32, f32)>) {
         self.patches.clear();
-        self.looks.clear();
-        self.edges.clear();
-        self.steel.clear();
         let k = camera.intrinsics;
         let (w, h) = (k.width as usize, k.height as usize);
         let Some((_, backdrop)) = self.cache.as_ref() else {
@@ -625,15 +623,17 @@ impl SceneRenderer {
             hits,
             inside,
             patches,
-            looks,
-            edges,
-            steel,
+            queue,
+            rays,
+            edge_pixels,
+            edge_points,
             ..
         } = self;
+        edge_pixels.clear();
+        edge_points.clear();
         let (work_x0, work_y0, work_w) = (work.x0 as usize, work.y0 as usize, work.width as usize);
         // row `y` of `inside` (the work region holds the rows next to the region's)
         let row = |y: usize| &inside[(y - work_y0) * work_w..(y - work_y0 + 1) * work_w];
-        // the looks first (the patches' colours wait for the reflected pixels)
         raster.tiles(
             camera,
             region,
@@ -657,45 +657,39 @@ impl SceneRenderer {
                             || below.is_some_and(|r| differs(r, i));
                         let p = ((y - region.y0 as usize) * rw + (x - region.x0 as usize)) as u32;
                         if edge {
+                            // its four rays, cast with the tile's other edges' below
                             let o = 3 * (y * w + x);
                             let bg = [background[o], background[o + 1], background[o + 2]];
-                            for (dx, dy) in EDGE_SAMPLES {
-                                let (u, v) = (x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
-                                match scene.first_hit(camera, candidates, u, v) {
-                                    (Some(hit), d) => {
-                                        steel.push(&scene.bodies, &hit, &d, band, looks);
-                                    }
-                                    (None, _) => looks.push(Look::Done(bg)),
-                                }
-                            }
+                            edge_pixels.push((patches.len() as u32, bg));
                             patches.push((p, [0.0; 3]));
-                            edges.push(true);
+                            edge_points.extend(
+                                EDGE_SAMPLES
+                                    .map(|(dx, dy)| (x as f64 + 0.5 + dx, y as f64 + 0.5 + dy)),
+                            );
                         } else if let Some(i) = here {
                             let hit = &hits[i as usize];
                             let d = optics.ray(x as u32, y as u32);
-                            steel.push(&scene.bodies, hit, &d, band, looks);
+                            let slot = (patches.len() as u32, false);
                             patches.push((p, [0.0; 3]));
-                            edges.push(false);
+                            queue.push(&scene.bodies, hit, &d, band, slot, &env, patches);
                         }
                     }
                 }
+                // an edge's colour: a quarter of each of its rays', in order
+                rays.first_hits(camera, scene, candidates, edge_points, |k, hit, d| {
+                    let (patch, bg) = edge_pixels[k / 4];
+                    match hit {
+                        Some(hit) => {
+                            queue.push(&scene.bodies, &hit, d, band, (patch, true), &env, patches);
+                        }
+                        None => queue.push_colour(bg, (patch, true), &env, patches),
+                    }
+                });
+                edge_pixels.clear();
+                edge_points.clear();
             },
         );
-        steel.fill(&env, looks);
-        // then the colours: an edge's the mean of its four rays'
-        let mut next = looks.iter();
-        for ((_, c), &edge) in patches.iter_mut().zip(edges.iter()) {
-            if edge {
-                let mut sum = [0.0f32; 3];
-                for look in next.by_ref().take(4) {
-                    let c = look.colour(&env);
-                    (0..3).for_each(|ch| sum[ch] += 0.25 * c[ch]);
-                }
-                *c = sum;
-            } else if let Some(look) = next.next() {
-                *c = look.colour(&env);
-            }
-        }
+        queue.flush(&env, patches);
     }
 }
 
