@@ -1007,7 +1007,11 @@ impl CameraBody {
         match (self.ends, surface) {
             (Ends::Flat, Surface::EndA) if self.len > 1e-9 => -self.axis,
             (Ends::Flat, Surface::EndB) if self.len > 1e-9 => self.axis,
-            _ => (d * t - (self.a + (self.b - self.a) * u)).normalize(),
+            // one division, not one a component (the shading reads it in f32)
+            _ => {
+                let out = d * t - (self.a + (self.b - self.a) * u);
+                out * (1.0 / out.norm())
+            }
         }
     }
 }

@@ -41,88 +41,40 @@ pub(super) struct Surroundings<'a> {
 }
 
 impl Surroundings<'_> {
-    /// The tissue seen along the reflected ray `r` (camera frame): where
-    /// it points ahead, the background pixel it would project to (clamped to
-    /// the frame); where it points back past the camera, the dark overtube
-    /// and shadowed tissue around it. The pixel is named, not read (see [`Look`]).
-    fn along(&self, r: &Vector3<f64>) -> Seen {
-        if r.z < 0.05 {
-            return Seen::Colour(self.mean.map(|c| 0.3 * c));
+    /// The tissue seen along the reflected ray `r` (camera frame): where it
+    /// points ahead, the background pixel it would project to, lens
+    /// included (clamped to the frame; the mean colour where the image is
+    /// not the camera's); where it points back past the camera, the dark
+    /// overtube and shadowed tissue around it.
+    #[inline]
+    fn along(&self, [rx, ry, rz]: [f32; 3]) -> [f32; 3] {
+        if rz < 0.05 {
+            return self.mean.map(|c| 0.3 * c);
         }
         let k = &self.camera.intrinsics;
-        let [xd, yd] = self.camera.lens.distort(r.x / r.z, r.y / r.z);
-        self.seen(r.z, k.fx * xd + k.cx, k.fy * yd + k.cy)
-    }
-
-    /// [`Surroundings::along`] from the reflected ray's depth `z` and the
-    /// pixel position `(u, v)` it projects to (worked out only where `z` is
-    /// ahead).
-    #[inline]
-    fn seen(&self, z: f64, u: f64, v: f64) -> Seen {
-        if z < 0.05 {
-            return Seen::Colour(self.mean.map(|c| 0.3 * c));
-        }
-        let k = &self.camera.intrinsics;
-        let u = u.clamp(0.0, f64::from(k.width) - 1.0) as usize;
-        let v = v.clamp(0.0, f64::from(k.height) - 1.0) as usize;
-        Seen::At(3 * (v * k.width as usize + u))
-    }
-
-    /// The colour at `i` of the background (its mean where outside).
-    #[inline]
-    fn at(&self, i: usize) -> [f32; 3] {
+        // Lens::distort of the pinhole direction, in f32
+        let (xu, yu) = (rx / rz, ry / rz);
+        let ru2 = xu * xu + yu * yu;
+        let root = (1.0 - 4.0 * self.camera.lens.division as f32 * ru2)
+            .max(0.0)
+            .sqrt();
+        let s = 2.0 / (1.0 + root);
+        let pu = k.fx as f32 * (xu * s) + k.cx as f32;
+        let pv = k.fy as f32 * (yu * s) + k.cy as f32;
+        let u = pu.clamp(0.0, k.width as f32 - 1.0) as i32;
+        let v = pv.clamp(0.0, k.height as f32 - 1.0) as i32;
+        let i = 3 * (v as usize * k.width as usize + u as usize);
         match self.image.get(i..i + 3) {
             Some(p) => [p[0], p[1], p[2]],
             None => self.mean,
         }
     }
-}
 
-/// What the steel reflects at a point: a background pixel (the index of
-/// its red value) or a colour.
-#[derive(Debug, Clone, Copy)]
-pub(super) enum Seen {
-    At(usize),
-    Colour([f32; 3]),
-}
-
-/// A surface's colour, or all of it but what the steel reflects: the
-/// reflected pixel, in a background image too large for the cache, is read
-/// after a whole frame's looks are made ([`Look::colour`]), in a loop of
-/// independent reads the processor overlaps.
-#[derive(Debug, Clone, Copy)]
-pub(super) enum Look {
-    Done([f32; 3]),
-    Steel {
-        diffuse: f64,
-        reflected: f64,
-        highlight: f64,
-        seen: Seen,
-    },
-}
-
-impl Look {
-    /// The colour, reading the reflected pixel from `env`.
-    #[inline]
-    pub(super) fn colour(&self, env: &Surroundings<'_>) -> [f32; 3] {
-        match *self {
-            Look::Done(c) => c,
-            Look::Steel {
-                diffuse,
-                reflected,
-                highlight,
-                seen,
-            } => {
-                let seen = match seen {
-                    Seen::At(i) => env.at(i),
-                    Seen::Colour(c) => c,
-                };
-                std::array::from_fn(|k| {
-                    (f64::from(METAL[k]) * diffuse + f64::from(seen[k]) * reflected + highlight)
-                        as f32
-                })
-            }
-        }
+    /// Whether the image is the camera's whole frame (so that every
+    /// clamped pixel is in it).
+    fn whole(&self) -> bool {
+        let k = &self.camera.intrinsics;
+        self.image.len() >= 3 * k.width as usize * k.height as usize
     }
 }
 
@@ -132,66 +84,103 @@ pub(super) fn under_tape(hit: &SurfaceHit, tape: Option<(f32, f32)>) -> bool {
     tape.is_some_and(|(lo, hi)| arc >= lo && arc <= hi)
 }
 
-/// The look of the surface at `hit`, seen along unit `d`: tape where
+/// The colour of the surface at `hit`, seen along unit `d`: tape where
 /// [`under_tape`], else steel; `env` is what the steel reflects. Frames
-/// make their looks by [`SteelLooks`]; this one-at-a-time form is the
+/// make their colours by [`LookQueue`]; this one-at-a-time form is the
 /// reference its test holds them to.
 #[cfg(test)]
-fn surface_look(
+fn surface_colour(
     bodies: &[CameraBody],
     hit: &SurfaceHit,
     d: &Vector3<f64>,
     tape: Option<(f32, f32)>,
     env: &Surroundings<'_>,
-) -> Look {
+) -> [f32; 3] {
+    let (d, n, t) = f32_inputs(hit, d);
     if under_tape(hit, tape) {
-        return tape_look(hit, d);
+        return tape_colour(d, n, t);
     }
     let (shadow, gloss) = steel_finish(bodies, hit);
-    steel_look(d, &hit.normal, hit.t, shadow, gloss, env)
+    steel_colour(d, n, t, shadow, gloss, env)
 }
 
-/// Steel's look where a ray along unit `d` meets it at distance `t` (mm),
-/// outward normal `n`, with `shadow` and `gloss` ([`steel_finish`]).
-fn steel_look(
-    d: &Vector3<f64>,
-    n: &Vector3<f64>,
-    t: f64,
-    shadow: f64,
-    gloss: f64,
+/// Steel's colour where a ray along unit `d` meets it at distance `t` (mm),
+/// outward normal `n`, with `shadow` and `gloss` ([`steel_finish`]): the
+/// endoscope's light, diffuse and a highlight, plus the tissue it reflects.
+/// In `f32`, each operation the one [`LookQueue`]'s AVX2 copy makes, in its
+/// order (no fused multiply-add; the powers by squarings), so the same bits.
+fn steel_colour(
+    d: [f32; 3],
+    n: [f32; 3],
+    t: f32,
+    shadow: f32,
+    gloss: f32,
     env: &Surroundings<'_>,
-) -> Look {
-    let cos = (-n.dot(d)).clamp(0.0, 1.0);
-    let light = INSTRUMENT_LIGHT * falloff(t);
-    let fresnel = STEEL_F0 + (1.0 - STEEL_F0) * (1.0 - cos).powi(5);
+) -> [f32; 3] {
+    // falloff(t): (30 / max(t, 1))², at most 2.5
+    let fall = LIGHT_MM as f32 / t.max(1.0);
+    let fall = (fall * fall).min(2.5);
+    let nd = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
+    let cos = (-nd).clamp(0.0, 1.0);
+    let light = INSTRUMENT_LIGHT as f32 * fall;
+    // Schlick: (1 − cos)⁵ = x · x⁴
+    let x = 1.0 - cos;
+    let x2 = x * x;
+    let fresnel = STEEL_F0 as f32 + (1.0 - STEEL_F0 as f32) * (x * (x2 * x2));
     // satin steel scatters some light back even at grazing incidence
     let diffuse = (0.28 + 0.42 * cos) * light * shadow;
-    let mirror = d - n * (2.0 * d.dot(n));
-    let seen = env.along(&mirror);
+    // the mirror direction d − n (2 n·d)
+    let twice = 2.0 * nd;
+    let r = [0, 1, 2].map(|k| d[k] - n[k] * twice);
     // the tissue it reflects is lit about as the steel is (no brighter than nominal)
-    let reflected = 0.22 * fresnel * shadow * gloss * falloff(t).min(1.0);
-    let highlight = (0.9 * cos.powi(80) + 0.2 * cos.powi(10)) * light * shadow * gloss;
-    Look::Steel {
-        diffuse,
-        reflected,
-        highlight,
-        seen,
-    }
+    let reflected = 0.22 * fresnel * shadow * gloss * fall.min(1.0);
+    // cos⁸⁰ = cos¹⁶ · cos⁶⁴ and cos¹⁰ = cos² · cos⁸, their bases held
+    // above where the powers would fall to subnormal numbers, which cost the
+    // processor a hundred cycles each (the terms are then below 1e-30: nothing)
+    let (g, s) = (cos.max(GLINT_FLOOR), cos.max(SHEEN_FLOOR));
+    let (g2, s2) = (g * g, s * s);
+    let (g4, s4) = (g2 * g2, s2 * s2);
+    let (g8, s8) = (g4 * g4, s4 * s4);
+    let g16 = g8 * g8;
+    let g32 = g16 * g16;
+    let g64 = g32 * g32;
+    let shine = 0.9 * (g16 * g64) + 0.2 * (s2 * s8);
+    let highlight = shine * light * shadow * gloss;
+    let seen = env.along(r);
+    [0, 1, 2].map(|k| METAL[k] * diffuse + seen[k] * reflected + highlight)
 }
 
-/// The tape's look at `hit` seen along unit `d`: matte, Lambert and a faint sheen.
-fn tape_look(hit: &SurfaceHit, d: &Vector3<f64>) -> Look {
-    let cos = (-hit.normal.dot(d)).clamp(0.0, 1.0);
-    let light = INSTRUMENT_LIGHT * falloff(hit.t);
+/// The least base of the highlight's `cos⁸⁰`: 0.4⁸⁰ ≈ 1.5e-32, still a
+/// normal `f32` (the smallest is 1.2e-38).
+const GLINT_FLOOR: f32 = 0.4;
+/// The least base of the sheen's `cos¹⁰`: 0.001¹⁰ = 1e-30.
+const SHEEN_FLOOR: f32 = 1e-3;
+
+/// The tape's colour where a ray along unit `d` meets it at distance `t`
+/// (mm), outward normal `n`: matte, Lambert and a faint sheen.
+fn tape_colour(d: [f32; 3], n: [f32; 3], t: f32) -> [f32; 3] {
+    let fall = LIGHT_MM as f32 / t.max(1.0);
+    let light = INSTRUMENT_LIGHT as f32 * (fall * fall).min(2.5);
+    let cos = (-(n[0] * d[0] + n[1] * d[1] + n[2] * d[2])).clamp(0.0, 1.0);
     let diffuse = (0.15 + 0.85 * cos) * light;
-    let sheen = 0.04 * cos.powi(16) * light;
-    Look::Done(TAPE.map(|c| (f64::from(c) * diffuse + sheen) as f32))
+    // cos¹⁶, its base held above subnormal powers (0.01¹⁶ = 1e-32)
+    let c2 = cos.max(0.01) * cos.max(0.01);
+    let c4 = c2 * c2;
+    let c8 = c4 * c4;
+    let sheen = 0.04 * (c8 * c8) * light;
+    TAPE.map(|c| c * diffuse + sheen)
+}
+
+/// A hit's ray, normal and distance in `f32`, as the shading reads them.
+fn f32_inputs(hit: &SurfaceHit, d: &Vector3<f64>) -> ([f32; 3], [f32; 3], f32) {
+    let f = |v: &Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
+    (f(d), f(&hit.normal), hit.t as f32)
 }
 
 /// The steel's finish at `hit`: the shadow on it (the backbone, seen
 /// through the gaps between discs, sits in their shadow) and its gloss
 /// (machined disc faces are duller than the polished sides).
-fn steel_finish(bodies: &[CameraBody], hit: &SurfaceHit) -> (f64, f64) {
+fn steel_finish(bodies: &[CameraBody], hit: &SurfaceHit) -> (f32, f32) {
     let body = &bodies[hit.body];
     let shadow = if matches!(body.part, Part::Link(_)) && body.ends == Ends::Round {
         0.45
@@ -206,27 +195,24 @@ fn steel_finish(bodies: &[CameraBody], hit: &SurfaceHit) -> (f64, f64) {
     (shadow, gloss)
 }
 
-/// How many looks [`LookQueue`] holds before it makes them.
+/// How many looks [`LookQueue`] holds before it makes them (a multiple of eight).
 const QUEUE: usize = 64;
 
 /// A frame's looks, queued while the tiles are walked and made a batch at a
 /// time into the colours of the pixels they shade (a kept batch in the
 /// first cache level, not a frame's worth of looks in memory).
 ///
-/// Steel's looks are made four to an instruction where the processor has
-/// AVX2: the operations of [`steel_look`] in its order (no fused
-/// multiply-add, the powers as the compiler expands `powi`: squarings, the
-/// set bits' factors multiplied from the lowest), so the same bits (a test
-/// holds them equal). Then the queue's looks, in the order they came, go
-/// into their pixels: an inner pixel takes its look's colour, an edge's
-/// pixel adds a quarter of each of its four rays' (from black, in their
-/// order). The reflected pixels are read in that loop, a batch of
-/// independent reads the processor overlaps.
+/// Steel's colours are made eight to an instruction where the processor
+/// has AVX2, as [`steel_colour`] makes them one at a time (the same bits; a
+/// test holds them equal), the reflected pixels gathered. Then the queue's
+/// looks, in the order they came, go into their pixels: an inner pixel
+/// takes its look's colour, an edge's pixel adds a quarter of each of its
+/// four rays' (from black, in their order).
 #[derive(Debug, Clone)]
 pub(super) struct LookQueue {
     /// Steel's inputs, a field to a row: ray (x, y, z), normal (x, y, z),
     /// distance, shadow, gloss; one lane a look.
-    rows: [[f64; QUEUE]; 9],
+    rows: [[f32; QUEUE]; 9],
     /// Lanes of steel queued.
     steel: usize,
     /// Each queued look: its pixel (index in the patches), whether it is one
@@ -237,14 +223,11 @@ pub(super) struct LookQueue {
     done: [[f32; 3]; QUEUE],
     /// Looks queued.
     len: usize,
-    /// Makes steel's looks one at a time even where the processor has AVX2
-    /// (the tests hold both ways to the same bits).
+    /// Makes steel's colours one at a time even where the processor has
+    /// AVX2 (the tests hold both ways to the same bits).
     portable: bool,
-    /// The steel lanes' colours, once made, and their terms on the way:
-    /// diffuse, reflected, highlight, and the reflected ray's depth and
-    /// pixel (then the colour it reflects).
-    colours: [[f32; 3]; QUEUE],
-    out: [[f64; QUEUE]; 6],
+    /// The steel lanes' colours, a channel to a row, once made.
+    colours: [[f32; QUEUE]; 3],
 }
 
 impl Default for LookQueue {
@@ -258,8 +241,7 @@ impl Default for LookQueue {
             done: [[0.0; 3]; QUEUE],
             len: 0,
             portable: false,
-            colours: [[0.0; 3]; QUEUE],
-            out: [[0.0; QUEUE]; 6],
+            colours: [[0.0; QUEUE]; 3],
         }
     }
 }
@@ -280,20 +262,17 @@ impl LookQueue {
         env: &Surroundings<'_>,
         patches: &mut [(u32, [f32; 3])],
     ) {
+        let (d, n, t) = f32_inputs(hit, d);
         if under_tape(hit, tape) {
-            let Look::Done(c) = tape_look(hit, d) else {
-                return;
-            };
-            self.push_colour(c, (patch, edge), env, patches);
+            self.push_colour(tape_colour(d, n, t), (patch, edge), env, patches);
             return;
         }
         let (shadow, gloss) = steel_finish(bodies, hit);
-        let n = &hit.normal;
         let q = self.steel;
         for (row, v) in self
             .rows
             .iter_mut()
-            .zip([d.x, d.y, d.z, n.x, n.y, n.z, hit.t, shadow, gloss])
+            .zip([d[0], d[1], d[2], n[0], n[1], n[2], t, shadow, gloss])
         {
             row[q] = v;
         }
@@ -338,10 +317,13 @@ impl LookQueue {
     /// `patches`; the queue is empty after.
     pub(super) fn flush(&mut self, env: &Surroundings<'_>, patches: &mut [(u32, [f32; 3])]) {
         self.make(env);
+        let [r, g, b] = &self.colours;
         for i in 0..self.len {
-            let c = match self.colours.get(self.lane[i] as usize) {
-                Some(&c) => c,
-                None => self.done[i],
+            let lane = self.lane[i] as usize;
+            let c = if lane < QUEUE {
+                [r[lane], g[lane], b[lane]]
+            } else {
+                self.done[i]
             };
             let Some((_, px)) = patches.get_mut(self.patch[i] as usize) else {
                 continue;
@@ -358,133 +340,184 @@ impl LookQueue {
 
     /// Makes the steel lanes' colours into `colours`.
     fn make(&mut self, env: &Surroundings<'_>) {
-        #[cfg(target_arch = "x86_64")]
-        if !self.portable && std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor has AVX2, checked just above.
-            unsafe { self.make_avx2(env) };
-            return;
-        }
-        self.make_portable(env);
+        let [r, g, b] = &mut self.colours;
+        steel_colours(
+            self.rows.each_ref().map(|row| &row[..]),
+            self.steel,
+            [r, g, b],
+            env,
+            self.portable,
+        );
     }
+}
 
-    /// One look at a time ([`steel_look`]).
-    fn make_portable(&mut self, env: &Surroundings<'_>) {
-        let r = &self.rows;
-        for q in 0..self.steel {
-            let d = Vector3::new(r[0][q], r[1][q], r[2][q]);
-            let n = Vector3::new(r[3][q], r[4][q], r[5][q]);
-            self.colours[q] = steel_look(&d, &n, r[6][q], r[7][q], r[8][q], env).colour(env);
-        }
-    }
-
-    /// [`LookQueue::make_portable`] four looks at a time in AVX2; the
-    /// reflected pixel's clamp and index stay scalar, as
-    /// [`Surroundings::along`] makes them. The last block's unused lanes
-    /// hold an earlier batch's values or zeros, computed and dropped.
+/// Steel's colours ([`steel_colour`]) of the first `n` lanes of `rows`
+/// (ray x, y, z, normal x, y, z, distance, shadow, gloss; each row as long
+/// as `out`'s, at least `n` rounded up to eight), into `out` (red, green,
+/// blue): eight at a time in AVX2 where the processor has it and `env`'s
+/// image is the whole frame (unless `portable`), with the same bits (a test
+/// holds them equal). Lanes past `n` up to the next eighth are made too
+/// (from whatever finite values they hold) and may be dropped.
+pub(super) fn steel_colours(
+    rows: [&[f32]; 9],
+    n: usize,
+    out: [&mut [f32]; 3],
+    env: &Surroundings<'_>,
+    portable: bool,
+) {
+    let len = (out.iter().map(|r| r.len()))
+        .chain(rows.iter().map(|r| r.len()))
+        .min()
+        .unwrap_or(0);
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn make_avx2(&mut self, env: &Surroundings<'_>) {
-        use std::arch::x86_64::{
-            _CMP_GT_OQ, _CMP_LT_OQ, _mm_storeu_ps, _mm256_add_pd as add, _mm256_blendv_pd,
-            _mm256_cmp_pd, _mm256_cvtpd_ps, _mm256_div_pd as div, _mm256_loadu_pd, _mm256_max_pd,
-            _mm256_min_pd, _mm256_mul_pd as mul, _mm256_set1_pd as v, _mm256_sqrt_pd,
-            _mm256_storeu_pd, _mm256_sub_pd as sub, _mm256_xor_pd,
-        };
-        // (closures here would not inherit AVX2 and stay out of line)
-        macro_rules! sq {
-            ($x:expr) => {{
-                let x = $x;
-                mul(x, x)
-            }};
-        }
-        let k = &env.camera.intrinsics;
-        let (fx, cx, fy, cy) = (v(k.fx), v(k.cx), v(k.fy), v(k.cy));
-        let four_division = v(4.0 * env.camera.lens.division);
-        let (zero, one, two) = (v(0.0), v(1.0), v(2.0));
-        for b in (0..self.steel).step_by(4) {
-            let r = &self.rows;
-            macro_rules! row {
-                // SAFETY: `b + 4 <= QUEUE` (a multiple of four), so the row holds four values from `b`.
-                ($i:expr) => {
-                    unsafe { _mm256_loadu_pd(r[$i][b..b + 4].as_ptr()) }
-                };
-            }
-            let (dx, dy, dz, nx, ny, nz) = (row!(0), row!(1), row!(2), row!(3), row!(4), row!(5));
-            let (t, shadow, gloss) = (row!(6), row!(7), row!(8));
-            // falloff(t): (30 / max(t, 1))², at most 2.5
-            let fall = _mm256_min_pd(sq!(div(v(LIGHT_MM), _mm256_max_pd(t, one))), v(2.5));
-            let nd = add(add(mul(nx, dx), mul(ny, dy)), mul(nz, dz));
-            // clamp(−n·d, 0, 1), NaN kept as `clamp` keeps it
-            let c = _mm256_xor_pd(nd, v(-0.0));
-            let c = _mm256_blendv_pd(c, zero, _mm256_cmp_pd::<_CMP_LT_OQ>(c, zero));
-            let cos = _mm256_blendv_pd(c, one, _mm256_cmp_pd::<_CMP_GT_OQ>(c, one));
-            let light = mul(v(INSTRUMENT_LIGHT), fall);
-            // (1 − cos)⁵ = x · x⁴
-            let x = sub(one, cos);
-            let fresnel = add(v(STEEL_F0), mul(v(1.0 - STEEL_F0), mul(x, sq!(sq!(x)))));
-            let diffuse = mul(mul(add(v(0.28), mul(v(0.42), cos)), light), shadow);
-            // d − n (2 d·n)
-            let twice = mul(two, add(add(mul(dx, nx), mul(dy, ny)), mul(dz, nz)));
-            let (rx, ry, rz) = (
-                sub(dx, mul(nx, twice)),
-                sub(dy, mul(ny, twice)),
-                sub(dz, mul(nz, twice)),
-            );
-            let reflected = mul(
-                mul(mul(mul(v(0.22), fresnel), shadow), gloss),
-                _mm256_min_pd(fall, one),
-            );
-            // cos⁸⁰ = cos¹⁶ · cos⁶⁴, cos¹⁰ = cos² · cos⁸
-            let c2 = sq!(cos);
-            let c8 = sq!(sq!(c2));
-            let c16 = sq!(c8);
-            let c64 = sq!(sq!(c16));
-            let shine = add(mul(v(0.9), mul(c16, c64)), mul(v(0.2), mul(c2, c8)));
-            let highlight = mul(mul(mul(shine, light), shadow), gloss);
-            // the lens (Lens::distort of the pinhole direction), then the pixel
-            let (xu, yu) = (div(rx, rz), div(ry, rz));
-            let ru2 = add(mul(xu, xu), mul(yu, yu));
-            let root = _mm256_sqrt_pd(_mm256_max_pd(sub(one, mul(four_division, ru2)), zero));
-            let s = div(two, add(one, root));
-            let (pu, pv) = (add(mul(fx, mul(xu, s)), cx), add(mul(fy, mul(yu, s)), cy));
-            for (o, x) in self
-                .out
-                .iter_mut()
-                .zip([diffuse, reflected, highlight, rz, pu, pv])
-            {
-                // SAFETY: as the loads: the row holds four values from `b`.
-                unsafe { _mm256_storeu_pd(o[b..b + 4].as_mut_ptr(), x) };
-            }
-        }
-        // the reflected pixels after the arithmetic, so that the blocks'
-        // divisions and square roots overlap
-        let [diffuse, reflected, highlight, rz, pu, pv] = &mut self.out;
-        for q in 0..self.steel {
-            let seen = match env.seen(rz[q], pu[q], pv[q]) {
-                Seen::At(i) => env.at(i),
-                Seen::Colour(c) => c,
+    if !portable
+        && n.div_ceil(8) * 8 <= len
+        && env.whole()
+        && std::arch::is_x86_feature_detected!("avx2")
+    {
+        // SAFETY: the processor has AVX2 and the image is the camera's whole
+        // frame, checked just above, and every row holds `n` rounded up to eight.
+        unsafe { steel_colours_avx2(rows, n, out, env) };
+        return;
+    }
+    let _ = portable;
+    let [red, green, blue] = out;
+    for q in 0..n.min(len) {
+        let r = |i: usize| rows[i][q];
+        let c = steel_colour(
+            [r(0), r(1), r(2)],
+            [r(3), r(4), r(5)],
+            r(6),
+            r(7),
+            r(8),
+            env,
+        );
+        (red[q], green[q], blue[q]) = (c[0], c[1], c[2]);
+    }
+}
+
+/// [`steel_colours`] eight at a time in AVX2 (the lanes' pixels are
+/// clamped into the image whatever values they hold).
+///
+/// # Safety
+/// The processor has AVX2, `env`'s image is the camera's whole frame
+/// ([`Surroundings::whole`]), and every row holds `n` rounded up to eight.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn steel_colours_avx2(
+    rows: [&[f32]; 9],
+    n: usize,
+    out: [&mut [f32]; 3],
+    env: &Surroundings<'_>,
+) {
+    use std::arch::x86_64::{
+        _CMP_GT_OQ, _CMP_LT_OQ, _mm256_add_epi32, _mm256_add_ps as add, _mm256_blendv_ps,
+        _mm256_cmp_ps, _mm256_cvttps_epi32, _mm256_div_ps as div, _mm256_loadu_ps, _mm256_max_ps,
+        _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps as mul, _mm256_mullo_epi32,
+        _mm256_set1_epi32, _mm256_set1_ps as v, _mm256_sqrt_ps, _mm256_storeu_ps,
+        _mm256_storeu_si256, _mm256_sub_ps as sub, _mm256_xor_ps,
+    };
+    // (closures here would not inherit AVX2 and stay out of line)
+    macro_rules! sq {
+        ($x:expr) => {{
+            let x = $x;
+            mul(x, x)
+        }};
+    }
+    let k = &env.camera.intrinsics;
+    let (fx, cx, fy, cy) = (
+        v(k.fx as f32),
+        v(k.cx as f32),
+        v(k.fy as f32),
+        v(k.cy as f32),
+    );
+    let four_division = v(4.0 * env.camera.lens.division as f32);
+    let (u_max, v_max) = (v(k.width as f32 - 1.0), v(k.height as f32 - 1.0));
+    let (width, three) = (_mm256_set1_epi32(k.width as i32), _mm256_set1_epi32(3));
+    let behind_colour = env.mean.map(|c| 0.3 * c);
+    let image = env.image.as_ptr();
+    let (zero, one, two) = (v(0.0), v(1.0), v(2.0));
+    let [red, green, blue] = out;
+    for b in (0..n).step_by(8) {
+        let r = &rows;
+        macro_rules! row {
+            // SAFETY: every row holds `n` rounded up to eight values (the
+            // caller's promise), so eight from `b`.
+            ($i:expr) => {
+                unsafe { _mm256_loadu_ps(r[$i].as_ptr().add(b)) }
             };
-            // (the depth and pixel are read: their rows take the colour)
-            (rz[q], pu[q], pv[q]) = (f64::from(seen[0]), f64::from(seen[1]), f64::from(seen[2]));
         }
-        // Look::colour: metal · diffuse + seen · reflected + highlight
-        let seen = [&*rz, &*pu, &*pv];
-        for b in (0..self.steel).step_by(4) {
-            // SAFETY: `b + 4 <= QUEUE`, so every row holds four values from `b`.
-            let at = |row: &[f64; QUEUE]| unsafe { _mm256_loadu_pd(row[b..b + 4].as_ptr()) };
-            let (d, r, h) = (at(diffuse), at(reflected), at(highlight));
-            let mut c = [[0.0f32; 4]; 3];
-            for (ch, out) in c.iter_mut().enumerate() {
-                let x = add(
-                    add(mul(v(f64::from(METAL[ch])), d), mul(at(seen[ch]), r)),
-                    h,
-                );
-                // SAFETY: `out` holds four values.
-                unsafe { _mm_storeu_ps(out.as_mut_ptr(), _mm256_cvtpd_ps(x)) };
-            }
-            for (q, colour) in self.colours[b..b + 4].iter_mut().enumerate() {
-                *colour = [c[0][q], c[1][q], c[2][q]];
-            }
+        let (dx, dy, dz, nx, ny, nz) = (row!(0), row!(1), row!(2), row!(3), row!(4), row!(5));
+        let (t, shadow, gloss) = (row!(6), row!(7), row!(8));
+        let fall = div(v(LIGHT_MM as f32), _mm256_max_ps(t, one));
+        let fall = _mm256_min_ps(sq!(fall), v(2.5));
+        let nd = add(add(mul(nx, dx), mul(ny, dy)), mul(nz, dz));
+        // clamp(−n·d, 0, 1), NaN kept as `clamp` keeps it
+        let c = _mm256_xor_ps(nd, v(-0.0));
+        let c = _mm256_blendv_ps(c, zero, _mm256_cmp_ps::<_CMP_LT_OQ>(c, zero));
+        let cos = _mm256_blendv_ps(c, one, _mm256_cmp_ps::<_CMP_GT_OQ>(c, one));
+        let light = mul(v(INSTRUMENT_LIGHT as f32), fall);
+        let x = sub(one, cos);
+        let fresnel = add(
+            v(STEEL_F0 as f32),
+            mul(v(1.0 - STEEL_F0 as f32), mul(x, sq!(sq!(x)))),
+        );
+        let diffuse = mul(mul(add(v(0.28), mul(v(0.42), cos)), light), shadow);
+        let twice = mul(two, nd);
+        let (rx, ry, rz) = (
+            sub(dx, mul(nx, twice)),
+            sub(dy, mul(ny, twice)),
+            sub(dz, mul(nz, twice)),
+        );
+        let reflected = mul(
+            mul(mul(mul(v(0.22), fresnel), shadow), gloss),
+            _mm256_min_ps(fall, one),
+        );
+        let g2 = sq!(_mm256_max_ps(cos, v(GLINT_FLOOR)));
+        let g16 = sq!(sq!(sq!(g2)));
+        let g64 = sq!(sq!(g16));
+        let s2 = sq!(_mm256_max_ps(cos, v(SHEEN_FLOOR)));
+        let s8 = sq!(sq!(s2));
+        let shine = add(mul(v(0.9), mul(g16, g64)), mul(v(0.2), mul(s2, s8)));
+        let highlight = mul(mul(mul(shine, light), shadow), gloss);
+        // the reflected pixel (Surroundings::along): the lens, the clamp
+        // (NaN to 0 as `as i32` takes it), its index
+        let (xu, yu) = (div(rx, rz), div(ry, rz));
+        let ru2 = add(mul(xu, xu), mul(yu, yu));
+        let root = _mm256_sqrt_ps(_mm256_max_ps(sub(one, mul(four_division, ru2)), zero));
+        let s = div(two, add(one, root));
+        let (pu, pv) = (add(mul(fx, mul(xu, s)), cx), add(mul(fy, mul(yu, s)), cy));
+        let u = _mm256_cvttps_epi32(_mm256_min_ps(_mm256_max_ps(pu, zero), u_max));
+        let vv = _mm256_cvttps_epi32(_mm256_min_ps(_mm256_max_ps(pv, zero), v_max));
+        let at = _mm256_mullo_epi32(three, _mm256_add_epi32(_mm256_mullo_epi32(vv, width), u));
+        // ahead of the camera (not `rz < 0.05`, NaN included, as `along` asks)
+        let behind = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(rz, v(0.05)));
+        let mut index = [0i32; 8];
+        // SAFETY: `index` holds eight values.
+        unsafe { _mm256_storeu_si256(index.as_mut_ptr().cast(), at) };
+        // the reflected pixels read one by one (a gather is slower on
+        // processors whose microcode guards it)
+        let mut seen = [[0.0f32; 8]; 3];
+        for (q, &i) in index.iter().enumerate() {
+            let c = if behind & (1 << q) != 0 {
+                behind_colour
+            } else {
+                let i = i as usize;
+                // SAFETY: every index is a clamped pixel's red value in
+                // the whole frame, which the image holds (the caller's promise).
+                unsafe { [*image.add(i), *image.add(i + 1), *image.add(i + 2)] }
+            };
+            (seen[0][q], seen[1][q], seen[2][q]) = (c[0], c[1], c[2]);
+        }
+        for (ch, row) in [&mut *red, &mut *green, &mut *blue].into_iter().enumerate() {
+            // SAFETY: `seen[ch]` holds eight values.
+            let seen = unsafe { _mm256_loadu_ps(seen[ch].as_ptr()) };
+            let colour = add(
+                add(mul(v(METAL[ch]), diffuse), mul(seen, reflected)),
+                highlight,
+            );
+            // SAFETY: as the loads.
+            unsafe { _mm256_storeu_ps(row.as_mut_ptr().add(b), colour) };
         }
     }
 }
@@ -525,7 +558,7 @@ mod tests {
     }
 
     /// The queued looks (AVX2 where the processor has it, and the portable
-    /// copy) give, pixel for pixel, the bits of [`surface_look`]'s colours:
+    /// copy) give, pixel for pixel, the bits of [`surface_colour`]'s colours:
     /// steel and tape, centre and off-centre rays, reflections ahead and
     /// behind the camera, batches full and part full; an edge's pixel the
     /// sum of a quarter of each of its four rays' colours, in order.
@@ -570,15 +603,15 @@ mod tests {
                             let (Some(hit), d) = scene.first_hit(&camera, bodies, u, v) else {
                                 continue;
                             };
-                            let look = surface_look(&scene.bodies, &hit, &d, tape, &env);
-                            match look {
-                                Look::Done(_) => taped += 1,
-                                Look::Steel { seen, .. } => {
-                                    steel += 1;
-                                    behind += usize::from(matches!(seen, Seen::Colour(_)));
-                                }
+                            let c = surface_colour(&scene.bodies, &hit, &d, tape, &env);
+                            if under_tape(&hit, tape) {
+                                taped += 1;
+                            } else {
+                                steel += 1;
+                                // the mirror ray points back past the camera
+                                let n = hit.normal;
+                                behind += usize::from(d.z - n.z * 2.0 * n.dot(&d) < 0.05);
                             }
-                            let c = look.colour(&env);
                             let p = patches.len();
                             patches.push((0, [f32::NAN; 3]));
                             want.push((p, c));
