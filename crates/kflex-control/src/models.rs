@@ -12,8 +12,8 @@ use crate::error::{ControlError, Result};
 use crate::estimators::IbjaeAlone;
 use crate::grid::EstimatorKind;
 use kflex_estimate::{
-    AdaptiveKalman, AdaptiveParams, BandDatabase, DEFAULT_MIN_SILHOUETTE_IOU, Ibjae, KalmanParams,
-    Kbjae, Lbhjae, PaperKalman, Scnn, SegmentParams, load_databases,
+    AdaptiveKalman, AdaptiveParams, BandDatabase, DEFAULT_MIN_SILHOUETTE_IOU, HiddenPartGrids,
+    Ibjae, KalmanParams, Kbjae, Lbhjae, PaperKalman, Scnn, SegmentParams, load_databases,
 };
 use kflex_model::{Camera, Instrument};
 
@@ -22,7 +22,8 @@ pub const MODELS_DIR: &str = "assets/models";
 
 /// A directory of trained models. The feature databases it loads are read
 /// once per camera and shared by every estimator it makes (a grid makes
-/// fresh estimators for each run); a new `ModelDir` reads the files again.
+/// fresh estimators for each run), with the silhouette check's hidden-part
+/// grids, each band's rendered once; a new `ModelDir` reads the files again.
 #[derive(Debug, Clone)]
 pub struct ModelDir {
     dir: PathBuf,
@@ -30,8 +31,9 @@ pub struct ModelDir {
     loaded: Arc<Mutex<Vec<Loaded>>>,
 }
 
-/// Databases loaded by a [`ModelDir`], with the camera they were checked against.
-type Loaded = (Camera, Arc<[BandDatabase]>);
+/// Databases loaded by a [`ModelDir`], with the camera they were checked
+/// against and their hidden-part grids.
+type Loaded = (Camera, Arc<[BandDatabase]>, Arc<HiddenPartGrids>);
 
 impl PartialEq for ModelDir {
     /// The same directory (whatever each has loaded).
@@ -52,21 +54,31 @@ impl ModelDir {
         }
     }
 
-    /// The databases for `camera`: loaded (and checked) on the first ask,
-    /// shared after.
-    fn databases_for(&self, camera: &Camera) -> Result<Arc<[BandDatabase]>> {
+    /// The databases for `camera` and their hidden-part grids: loaded (and
+    /// checked) on the first ask, shared after.
+    fn databases_for(
+        &self,
+        camera: &Camera,
+    ) -> Result<(Arc<[BandDatabase]>, Arc<HiddenPartGrids>)> {
         let loaded = || self.loaded.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some((_, bands)) = loaded().iter().find(|(c, _)| c == camera) {
-            return Ok(Arc::clone(bands));
+        let found = |kept: &[Loaded]| {
+            kept.iter()
+                .find(|(c, _, _)| c == camera)
+                .map(|(_, bands, grids)| (Arc::clone(bands), Arc::clone(grids)))
+        };
+        if let Some(shared) = found(&loaded()) {
+            return Ok(shared);
         }
         // read outside the lock; two threads asking at once may both read
         let bands: Arc<[BandDatabase]> = Arc::from(load_databases(&self.databases(), camera)?);
+        // the databases are the nominal instrument's through `camera`
+        let grids = HiddenPartGrids::new(camera, &Instrument::kflex(), Arc::clone(&bands))?;
         let mut kept = loaded();
-        match kept.iter().find(|(c, _)| c == camera) {
-            Some((_, first)) => Ok(Arc::clone(first)),
+        match found(&kept) {
+            Some(first) => Ok(first),
             None => {
-                kept.push((*camera, Arc::clone(&bands)));
-                Ok(bands)
+                kept.push((*camera, Arc::clone(&bands), Arc::clone(&grids)));
+                Ok((bands, grids))
             }
         }
     }
@@ -112,15 +124,9 @@ impl ModelDir {
 
     fn ibjae(&self, camera: &Camera) -> Result<Ibjae> {
         let scnn = Scnn::load(&self.scnn(), 1)?;
-        let bands = self.databases_for(camera)?;
-        // the databases are the nominal instrument's through `camera`
-        Ok(
-            Ibjae::new_shared(scnn, SegmentParams::default(), bands)?.with_silhouette_check(
-                camera,
-                &Instrument::kflex(),
-                DEFAULT_MIN_SILHOUETTE_IOU,
-            )?,
-        )
+        let (bands, grids) = self.databases_for(camera)?;
+        Ok(Ibjae::new_shared(scnn, SegmentParams::default(), bands)?
+            .with_shared_silhouette_check(&grids, DEFAULT_MIN_SILHOUETTE_IOU)?)
     }
 
     /// Makes each of `kinds` once (not `None`, which needs no model), so

@@ -82,7 +82,7 @@
 //! consistent made taped frames worse (6.58 / 8.66°).
 
 use std::hash::{Hash, Hasher};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 
 use kflex_model::{Camera, Instrument, InstrumentShape, Mask, Rasterizer, Roi, WorkingBand};
 
@@ -288,27 +288,87 @@ fn bits_of(mask: &Mask) -> Bits {
     b
 }
 
-/// What [`Ibjae::with_silhouette_check`] needs: the nominal camera and
-/// instrument the databases were rendered from, and buffers.
+/// The nominal 48×48 silhouettes of every band's grid of poses (the
+/// database's order), which the silhouette check's hidden-part search
+/// compares a taped frame with (see "Hidden parts" in the module docs).
+/// A band's are rendered the first time a reader needs them, into room
+/// reserved up front (so that a read allocates nothing), once for every
+/// reader sharing them: the estimators a model directory makes share one
+/// per camera ([`Ibjae::with_shared_silhouette_check`]).
 #[derive(Debug)]
-struct SilhouetteCheck {
+pub struct HiddenPartGrids {
     camera: Camera,
     instrument: Instrument,
+    /// The databases whose grids these are.
+    bands: Arc<[BandDatabase]>,
+    /// Per band, the silhouettes rendered so far.
+    grid: Box<[Mutex<Vec<Bits>>]>,
+}
+
+impl HiddenPartGrids {
+    /// Room for the grids of `bands`, rendered through `camera` (the one
+    /// the databases were rendered through) of the nominal `instrument`.
+    ///
+    /// # Errors
+    /// As [`Camera::validate`] for a bad camera;
+    /// [`EstimateError::ModelMismatch`] naming both cameras when a database
+    /// was rendered through another camera.
+    pub fn new(
+        camera: &Camera,
+        instrument: &Instrument,
+        bands: Arc<[BandDatabase]>,
+    ) -> Result<Arc<Self>> {
+        camera.validate()?;
+        let expected = camera_key(camera);
+        for b in bands.iter() {
+            check_camera(&b.index, &expected, "feature database")?;
+        }
+        let grid = bands
+            .iter()
+            .map(|b| Mutex::new(Vec::with_capacity(b.index.len())))
+            .collect();
+        Ok(Arc::new(Self {
+            camera: *camera,
+            instrument: *instrument,
+            bands,
+            grid,
+        }))
+    }
+
+    /// Band `b`'s silhouettes (as many as rendered so far), locked.
+    fn band(&self, b: usize) -> Option<std::sync::MutexGuard<'_, Vec<Bits>>> {
+        self.grid
+            .get(b)
+            .map(|g| g.lock().unwrap_or_else(PoisonError::into_inner))
+    }
+
+    /// Whether every band's silhouettes are rendered.
+    fn ready(&self) -> bool {
+        self.bands
+            .iter()
+            .enumerate()
+            .all(|(b, db)| self.band(b).is_some_and(|g| g.len() >= db.index.len()))
+    }
+}
+
+/// What [`Ibjae::with_silhouette_check`] needs: the nominal camera and
+/// instrument the databases were rendered from (the grids'), the least IoU
+/// that explains a frame, buffers, and the grids of the hidden-part search.
+#[derive(Debug)]
+struct SilhouetteCheck {
     min_iou: f64,
     raster: Rasterizer,
     shape: InstrumentShape,
     mask: Mask,
-    /// Per band, the nominal silhouettes of its grid's poses (the
-    /// database's order), rendered when the band first needs them; their
-    /// room is reserved up front, so a read allocates nothing.
-    grid: Vec<Vec<Bits>>,
+    grids: Arc<HiddenPartGrids>,
 }
 
 impl SilhouetteCheck {
     /// The nominal 48×48 silhouette of `pose` through `roi`, into `self.mask`.
     fn render(&mut self, roi: Roi, pose: Pose) -> Result<()> {
-        let small = silhouette_camera(&self.camera, roi)?;
-        self.instrument
+        let small = silhouette_camera(&self.grids.camera, roi)?;
+        self.grids
+            .instrument
             .shape_into(pose.theta_deg, pose.translation_mm, &mut self.shape)?;
         self.mask.clear();
         self.raster
@@ -317,17 +377,22 @@ impl SilhouetteCheck {
     }
 
     /// Renders the nominal silhouettes of band `b`'s grid (database `db`)
-    /// that are not rendered yet, into the room reserved for them.
+    /// that are not rendered yet, into the room reserved for them (a reader
+    /// sharing the grids and rendering the band meanwhile is waited for).
     fn fill(&mut self, b: usize, db: &BandDatabase) {
+        let grids = Arc::clone(&self.grids);
+        let Some(mut grid) = grids.band(b) else {
+            return;
+        };
         let poses = db.index.poses();
-        if self.grid.get(b).is_some_and(|g| g.len() < poses.len()) {
-            for &pose in &poses[self.grid[b].len()..] {
+        if grid.len() < poses.len() {
+            for &pose in &poses[grid.len()..] {
                 // a pose the instrument cannot take explains nothing
                 let bits = match self.render(db.band.roi, pose) {
                     Ok(()) => bits_of(&self.mask),
                     Err(_) => [0; BITS_WORDS],
                 };
-                self.grid[b].push(bits);
+                grid.push(bits);
             }
         }
     }
@@ -345,7 +410,8 @@ impl SilhouetteCheck {
     ) -> Result<Option<(usize, [f64; 2], f64)>> {
         let poses = db.index.poses();
         self.fill(b, db);
-        let Some(grid) = self.grid.get(b) else {
+        let grids = Arc::clone(&self.grids);
+        let Some(grid) = grids.band(b) else {
             return Ok(None);
         };
         let s = bits_of(seen);
@@ -858,30 +924,46 @@ impl Ibjae {
     /// was rendered through another camera (its metadata, as
     /// [`crate::load_databases`] checks it).
     pub fn with_silhouette_check(
-        mut self,
+        self,
         camera: &Camera,
         instrument: &Instrument,
         min_iou: f64,
     ) -> Result<Self> {
         kflex_model::Bounds::closed(0.0, 1.0).check("min_silhouette_iou", min_iou)?;
-        camera.validate()?;
-        let expected = camera_key(camera);
-        for b in self.bands.iter() {
-            check_camera(&b.index, &expected, "feature database")?;
+        let grids = HiddenPartGrids::new(camera, instrument, Arc::clone(&self.bands))?;
+        self.with_shared_silhouette_check(&grids, min_iou)
+    }
+
+    /// [`Ibjae::with_silhouette_check`] with the nominal camera, instrument
+    /// and hidden-part grids of `grids`, shared with the other readers given
+    /// them: each band's grid is rendered once for all of them.
+    ///
+    /// # Errors
+    /// [`EstimateError::OutOfRange`] for `min_iou` outside `[0, 1]`;
+    /// [`EstimateError::ModelMismatch`] when `grids` were made for other
+    /// databases than this reader's (the same shared ones,
+    /// [`Ibjae::new_shared`], are needed).
+    pub fn with_shared_silhouette_check(
+        mut self,
+        grids: &Arc<HiddenPartGrids>,
+        min_iou: f64,
+    ) -> Result<Self> {
+        kflex_model::Bounds::closed(0.0, 1.0).check("min_silhouette_iou", min_iou)?;
+        if !Arc::ptr_eq(&grids.bands, &self.bands) {
+            return Err(EstimateError::ModelMismatch {
+                path: "hidden-part grids".to_string(),
+                which: "databases",
+                expected: "the reader's own (shared) databases".to_string(),
+                found: "another set of databases".to_string(),
+            });
         }
         self.fingerprint = None;
         self.check = Some(SilhouetteCheck {
-            camera: *camera,
-            instrument: *instrument,
             min_iou,
             raster: Rasterizer::new(),
             shape: InstrumentShape::default(),
             mask: Mask::new(SCNN_SIDE, SCNN_SIDE)?,
-            grid: self
-                .bands
-                .iter()
-                .map(|b| Vec::with_capacity(b.index.len()))
-                .collect(),
+            grids: Arc::clone(grids),
         });
         Ok(self)
     }
@@ -908,12 +990,7 @@ impl Ibjae {
     /// that needed them), or there is no silhouette check.
     #[must_use]
     pub fn hidden_parts_ready(&self) -> bool {
-        self.check.as_ref().is_none_or(|c| {
-            c.grid
-                .iter()
-                .zip(self.bands.iter())
-                .all(|(g, db)| g.len() >= db.index.len())
-        })
+        self.check.as_ref().is_none_or(|c| c.grids.ready())
     }
 
     /// The band databases.
@@ -1163,7 +1240,11 @@ impl Ibjae {
         self.scnn.threads().hash(&mut h);
         format!("{:?}", self.segmenter.params()).hash(&mut h);
         match &self.check {
-            Some(c) => format!("{:?} {:?} {:?}", c.camera, c.instrument, c.min_iou).hash(&mut h),
+            Some(c) => format!(
+                "{:?} {:?} {:?}",
+                c.grids.camera, c.grids.instrument, c.min_iou
+            )
+            .hash(&mut h),
             None => "no check".hash(&mut h),
         }
         for b in self.bands.iter() {

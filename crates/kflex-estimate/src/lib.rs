@@ -149,8 +149,8 @@ pub use fusion::{
 #[cfg(all(feature = "onnx", feature = "index"))]
 pub use ibjae::{
     BandDatabase, DEFAULT_MIN_SILHOUETTE_IOU, FrameReads, HIDDEN_SIGMA_DEG, HIDDEN_TOLERANCE_PX,
-    Ibjae, IbjaeReading, MAX_BAND_POSES, MAX_UNEXPLAINED_SHARE, RgbView, UNEXPLAINED_SIGMA_DEG,
-    build_band_database, keys,
+    HiddenPartGrids, Ibjae, IbjaeReading, MAX_BAND_POSES, MAX_UNEXPLAINED_SHARE, RgbView,
+    UNEXPLAINED_SIGMA_DEG, build_band_database, keys,
 };
 #[cfg(feature = "index")]
 pub use index::{FeatureIndex, IndexParams, Neighbour, Pose, ProjectionDims, SearchStats};

@@ -531,6 +531,65 @@ fn the_hidden_parts_silhouettes_can_be_rendered_up_front() {
     assert!(two.hidden_parts_ready());
 }
 
+/// Readers given one set of hidden-part grids (as a model directory's
+/// estimators are) render each band's once: once one reader has read a
+/// taped frame, the other's grids are ready and it reads the same, as a
+/// reader with grids of its own does. Grids made for other databases (equal
+/// ones, loaded apart) are refused.
+#[test]
+fn readers_sharing_hidden_part_grids_render_each_band_once() {
+    use kflex_estimate::{BandDatabase, HiddenPartGrids};
+    use std::sync::Arc;
+
+    let camera = Camera::default();
+    let f = middle_taped(&camera, 21.0);
+    let view = RgbView::packed(&f.rgb, f.width, f.height).unwrap();
+    let scnn = || Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
+    let database = || -> Arc<[BandDatabase]> {
+        let db = build_band_database(
+            &mut scnn(),
+            &camera,
+            &Instrument::kflex(),
+            &paper_band(&camera),
+            1.0,
+            1.0,
+        )
+        .unwrap();
+        Arc::from(vec![db])
+    };
+    let bands = database();
+    let grids = HiddenPartGrids::new(&camera, &Instrument::kflex(), Arc::clone(&bands)).unwrap();
+    let reader = |bands: &Arc<[BandDatabase]>| {
+        Ibjae::new_shared(scnn(), SegmentParams::default(), Arc::clone(bands))
+            .unwrap()
+            .with_shared_silhouette_check(&grids, DEFAULT_MIN_SILHOUETTE_IOU)
+    };
+    let (mut first, mut second) = (reader(&bands).unwrap(), reader(&bands).unwrap());
+    assert!(!first.hidden_parts_ready() && !second.hidden_parts_ready());
+    let a = first.read(&view, &[0]).unwrap().expect("an instrument");
+    assert!(a.occluded, "{a:?}");
+    assert!(
+        second.hidden_parts_ready(),
+        "the first reader's grid serves the second"
+    );
+    let b = second.read(&view, &[0]).unwrap().expect("an instrument");
+    assert_eq!(a, b);
+    let own = checked_ibjae(&camera).read(&view, &[0]).unwrap();
+    assert_eq!(own, Some(a));
+
+    let err = reader(&database()).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            EstimateError::ModelMismatch {
+                which: "databases",
+                ..
+            }
+        ),
+        "{err}"
+    );
+}
+
 /// A silhouette that holds what no pose explains (steel pasted where there
 /// is only tissue: a wrong segmentation, not an occlusion) is not read as a
 /// hidden part: every grid pose leaves the pasted pixels unexplained, and
