@@ -13,7 +13,8 @@ use crate::estimators::IbjaeAlone;
 use crate::grid::EstimatorKind;
 use kflex_estimate::{
     AdaptiveKalman, AdaptiveParams, BandDatabase, DEFAULT_MIN_SILHOUETTE_IOU, HiddenPartGrids,
-    Ibjae, KalmanParams, Kbjae, Lbhjae, PaperKalman, Scnn, SegmentParams, load_databases,
+    Ibjae, KalmanParams, Kbjae, Lbhjae, ModelPool, PaperKalman, Scnn, SegmentParams,
+    load_databases,
 };
 use kflex_model::{Camera, Instrument};
 
@@ -24,9 +25,14 @@ pub const MODELS_DIR: &str = "assets/models";
 /// once per camera and shared by every estimator it makes (a grid makes
 /// fresh estimators for each run), with the silhouette check's hidden-part
 /// grids, each band's rendered once; a new `ModelDir` reads the files again.
+/// The networks' sessions its estimators give back when dropped serve the
+/// next ones it makes ([`ModelPool`]; the files are still read and checked
+/// at each make).
 #[derive(Debug, Clone)]
 pub struct ModelDir {
     dir: PathBuf,
+    /// The networks' sessions its estimators gave back, for the next ones.
+    pool: Arc<ModelPool>,
     /// The databases loaded so far, with the camera they were checked against.
     loaded: Arc<Mutex<Vec<Loaded>>>,
 }
@@ -50,6 +56,7 @@ impl ModelDir {
     pub fn new(dir: &Path) -> Self {
         Self {
             dir: dir.to_path_buf(),
+            pool: ModelPool::new(),
             loaded: Arc::default(),
         }
     }
@@ -123,7 +130,7 @@ impl ModelDir {
     }
 
     fn ibjae(&self, camera: &Camera) -> Result<Ibjae> {
-        let scnn = Scnn::load(&self.scnn(), 1)?;
+        let scnn = Scnn::load_pooled(&self.scnn(), 1, &self.pool)?;
         let (bands, grids) = self.databases_for(camera)?;
         Ok(Ibjae::new_shared(scnn, SegmentParams::default(), bands)?
             .with_shared_silhouette_check(&grids, DEFAULT_MIN_SILHOUETTE_IOU)?)
@@ -177,10 +184,10 @@ impl ModelDir {
                     what: "the uncompensated plant has no estimator to make".into(),
                 });
             }
-            EstimatorKind::Kbjae => Box::new(Kbjae::load(&self.kbjae())?),
+            EstimatorKind::Kbjae => Box::new(Kbjae::load_pooled(&self.kbjae(), &self.pool)?),
             EstimatorKind::Ibjae => Box::new(IbjaeAlone::new(self.ibjae(camera)?)),
             EstimatorKind::Lbhjae | EstimatorKind::LbhjaeAdaptive => Box::new(Lbhjae::new(
-                Kbjae::load(&self.kbjae())?,
+                Kbjae::load_pooled(&self.kbjae(), &self.pool)?,
                 self.ibjae(camera)?,
                 fusion(kind == EstimatorKind::LbhjaeAdaptive)?,
             )),

@@ -3,11 +3,12 @@
 //! and its rate, so `θ = θ_c + θ̃` (cargo feature `onnx`).
 
 use std::path::Path;
+use std::sync::Arc;
 
 use kflex_model::{Bounds, ModelError};
 
 use crate::error::Result;
-use crate::onnx::{OnnxModel, TensorSpec};
+use crate::onnx::{ModelPool, OnnxModel, Pooled, TensorSpec};
 
 /// KBJAE's model input: `[batch, 2]` of (θ deg, θ' deg/s), `f32`; the
 /// training script bakes its input scaling into the graph.
@@ -76,7 +77,7 @@ pub const MAX_RATE_DEG_PER_S: f64 = 1e9;
 /// adds to the command, the joint follows `θ_c`, not `θ_d`.
 #[derive(Debug)]
 pub struct Kbjae {
-    model: OnnxModel,
+    model: Pooled,
     rate: CommandRate,
 }
 
@@ -88,7 +89,18 @@ impl Kbjae {
     /// As [`OnnxModel::load`].
     pub fn load(path: &Path) -> Result<Self> {
         Ok(Self {
-            model: OnnxModel::load(path, KBJAE_INPUT, KBJAE_OUTPUT, 1)?,
+            model: Pooled::alone(OnnxModel::load(path, KBJAE_INPUT, KBJAE_OUTPUT, 1)?),
+            rate: CommandRate::new(),
+        })
+    }
+
+    /// [`Kbjae::load`] through `pool` (see [`Scnn::load_pooled`](crate::Scnn::load_pooled)).
+    ///
+    /// # Errors
+    /// As [`OnnxModel::load`].
+    pub fn load_pooled(path: &Path, pool: &Arc<ModelPool>) -> Result<Self> {
+        Ok(Self {
+            model: pool.load(path, KBJAE_INPUT, KBJAE_OUTPUT, 1)?,
             rate: CommandRate::new(),
         })
     }

@@ -161,5 +161,7 @@ pub use kflex_model::{Bounds, Mask, RangeError, Roi};
 #[cfg(all(feature = "onnx", feature = "index"))]
 pub use lbhjae::{Lbhjae, LbhjaeEstimate};
 #[cfg(feature = "onnx")]
+pub use onnx::ModelPool;
+#[cfg(feature = "onnx")]
 pub use scnn::{EMBEDDING_DIM, SCNN_INPUT, SCNN_OUTPUT, SCNN_SIDE, Scnn};
 pub use segment::{SegmentParams, Segmentation, Segmenter, segment};

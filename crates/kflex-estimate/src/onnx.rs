@@ -18,8 +18,9 @@
 //!
 //! When none has it, the error says what to install or set.
 
+use std::mem::ManuallyDrop;
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
+use std::sync::{Arc, Mutex, OnceLock, PoisonError, Weak};
 
 use ort::environment::Environment;
 use ort::session::Session;
@@ -253,6 +254,134 @@ fn card_sha256(model: &Path) -> Result<Option<String>> {
     }
 }
 
+/// The file at `path`, read, with its SHA-256, checked against the model
+/// card beside it (if any), for a model of `threads` intra-op threads.
+fn read_checked(path: &Path, threads: usize) -> Result<(Vec<u8>, String)> {
+    // ONNX Runtime takes the count as a C int; more than cores is waste
+    kflex_model::Bounds::closed(0.0, MAX_THREADS as f64).check("threads", threads as f64)?;
+    let bytes = std::fs::read(path).map_err(|e| EstimateError::io(path, &e))?;
+    let sha256 = sha256_hex(&bytes);
+    if let Some(card) = card_sha256(path)?
+        && card != sha256
+    {
+        return Err(EstimateError::ModelChecksum {
+            path: path.display().to_string(),
+            card,
+            file: sha256,
+        });
+    }
+    Ok((bytes, sha256))
+}
+
+/// Loaded models kept for reuse. ONNX Runtime takes about 10 ms to build a
+/// session (the SCNN's), and a session keeps nothing from one run to the
+/// next; so estimators made through a pool ([`crate::Scnn::load_pooled`],
+/// [`crate::Kbjae::load_pooled`]) take a kept model of the same file (the
+/// same SHA-256, read and checked again at each load), tensors and threads
+/// where there is one, and give it back when they are dropped. An
+/// experiment grid, which makes fresh estimators for every run, then builds
+/// each session about once per job. It keeps at most [`ModelPool::MAX_KEPT`].
+#[derive(Debug, Default)]
+pub struct ModelPool {
+    kept: Mutex<Vec<OnnxModel>>,
+}
+
+impl ModelPool {
+    /// The most models a pool keeps (those given back beyond are dropped).
+    pub const MAX_KEPT: usize = 64;
+
+    /// A new, empty pool, to share.
+    #[must_use]
+    pub fn new() -> Arc<Self> {
+        Arc::default()
+    }
+
+    /// Models it keeps now.
+    #[must_use]
+    pub fn kept(&self) -> usize {
+        self.lock().len()
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Vec<OnnxModel>> {
+        self.kept.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// [`OnnxModel::load`] through the pool: a kept model of the same file,
+    /// tensors and threads, else a new one; given back when the result is dropped.
+    pub(crate) fn load(
+        self: &Arc<Self>,
+        path: &Path,
+        input: TensorSpec,
+        output: TensorSpec,
+        threads: usize,
+    ) -> Result<Pooled> {
+        let (bytes, sha256) = read_checked(path, threads)?;
+        let found = {
+            let mut kept = self.lock();
+            kept.iter()
+                .position(|m| m.serves(path, &sha256, input, output, threads))
+                .map(|i| kept.swap_remove(i))
+        };
+        let model = match found {
+            Some(model) => model,
+            None => OnnxModel::from_checked(path, &bytes, sha256, input, output, threads)?,
+        };
+        Ok(Pooled {
+            model: ManuallyDrop::new(model),
+            home: Arc::downgrade(self),
+        })
+    }
+}
+
+/// A model that goes back to its pool when dropped (or is dropped with it,
+/// where it has none, or the pool is gone or full).
+pub(crate) struct Pooled {
+    model: ManuallyDrop<OnnxModel>,
+    home: Weak<ModelPool>,
+}
+
+impl Pooled {
+    /// A model of no pool.
+    pub(crate) fn alone(model: OnnxModel) -> Self {
+        Self {
+            model: ManuallyDrop::new(model),
+            home: Weak::new(),
+        }
+    }
+}
+
+impl std::fmt::Debug for Pooled {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.model.fmt(f)
+    }
+}
+
+impl std::ops::Deref for Pooled {
+    type Target = OnnxModel;
+    fn deref(&self) -> &OnnxModel {
+        &self.model
+    }
+}
+
+impl std::ops::DerefMut for Pooled {
+    fn deref_mut(&mut self) -> &mut OnnxModel {
+        &mut self.model
+    }
+}
+
+impl Drop for Pooled {
+    fn drop(&mut self) {
+        // SAFETY: `model` is taken once, here, and not used after.
+        let model = unsafe { ManuallyDrop::take(&mut self.model) };
+        if let Some(pool) = self.home.upgrade() {
+            let mut kept = pool.lock();
+            if kept.len() < ModelPool::MAX_KEPT {
+                kept.push(model);
+            }
+        }
+    }
+}
+
 impl OnnxModel {
     /// Loads the model at `path` for batch-1 latency (`threads` intra-op
     /// threads, 1 by default in the estimators; no spinning) and checks it:
@@ -276,20 +405,21 @@ impl OnnxModel {
         output: TensorSpec,
         threads: usize,
     ) -> Result<Self> {
+        let (bytes, sha256) = read_checked(path, threads)?;
+        Self::from_checked(path, &bytes, sha256, input, output, threads)
+    }
+
+    /// [`OnnxModel::load`] of a file already read and checked
+    /// ([`read_checked`]).
+    fn from_checked(
+        path: &Path,
+        bytes: &[u8],
+        sha256: String,
+        input: TensorSpec,
+        output: TensorSpec,
+        threads: usize,
+    ) -> Result<Self> {
         let shown = path.display().to_string();
-        // ONNX Runtime takes the count as a C int; more than cores is waste
-        kflex_model::Bounds::closed(0.0, MAX_THREADS as f64).check("threads", threads as f64)?;
-        let bytes = std::fs::read(path).map_err(|e| EstimateError::io(path, &e))?;
-        let sha256 = sha256_hex(&bytes);
-        if let Some(card) = card_sha256(path)?
-            && card != sha256
-        {
-            return Err(EstimateError::ModelChecksum {
-                path: shown,
-                card,
-                file: sha256,
-            });
-        }
         let env = environment()?;
         let onnx = |e: &dyn std::fmt::Display| EstimateError::Onnx {
             path: shown.clone(),
@@ -305,7 +435,7 @@ impl OnnxModel {
             .map_err(|e| onnx(&e))?
             .with_intra_op_spinning(false)
             .map_err(|e| onnx(&e))?
-            .commit_from_memory(&bytes)
+            .commit_from_memory(bytes)
             .map_err(|e| onnx(&e))?;
         check_outlets(&shown, "input", session.inputs(), input)?;
         check_outlets(&shown, "output", session.outputs(), output)?;
@@ -319,6 +449,24 @@ impl OnnxModel {
             threads: threads.max(1),
             one,
         })
+    }
+
+    /// Whether it is the model `path` holds now (its SHA-256 `sha256`) with
+    /// `input`, `output` and `threads`: what a pooled model must be to serve
+    /// a load ([`ModelPool`]).
+    fn serves(
+        &self,
+        path: &Path,
+        sha256: &str,
+        input: TensorSpec,
+        output: TensorSpec,
+        threads: usize,
+    ) -> bool {
+        self.path == path.display().to_string()
+            && self.sha256 == sha256
+            && self.input == input
+            && self.output == output
+            && self.threads == threads.max(1)
     }
 
     /// The model file's SHA-256 (lowercase hex).

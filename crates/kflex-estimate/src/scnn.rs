@@ -2,11 +2,12 @@
 //! 256-dimensional embedding, through ONNX Runtime (cargo feature `onnx`).
 
 use std::path::Path;
+use std::sync::Arc;
 
 use kflex_model::Mask;
 
 use crate::error::{EstimateError, Result};
-use crate::onnx::{OnnxModel, TensorSpec};
+use crate::onnx::{ModelPool, OnnxModel, Pooled, TensorSpec};
 
 /// Side of the silhouettes the SCNN takes, px.
 pub const SCNN_SIDE: u32 = 48;
@@ -32,7 +33,7 @@ const PIXELS: usize = (SCNN_SIDE * SCNN_SIDE) as usize;
 /// One branch of the Siamese CNN: embeds silhouettes for retrieval.
 #[derive(Debug)]
 pub struct Scnn {
-    model: OnnxModel,
+    model: Pooled,
     /// The batch-1 input, reused (no allocation per embedding).
     input: Vec<f32>,
 }
@@ -45,7 +46,20 @@ impl Scnn {
     /// As [`OnnxModel::load`].
     pub fn load(path: &Path, threads: usize) -> Result<Self> {
         Ok(Self {
-            model: OnnxModel::load(path, SCNN_INPUT, SCNN_OUTPUT, threads)?,
+            model: Pooled::alone(OnnxModel::load(path, SCNN_INPUT, SCNN_OUTPUT, threads)?),
+            input: vec![0.0; PIXELS],
+        })
+    }
+
+    /// [`Scnn::load`] through `pool`: a session of the same file and threads
+    /// that the pool keeps, else a new one; it goes back to the pool when
+    /// this is dropped.
+    ///
+    /// # Errors
+    /// As [`OnnxModel::load`].
+    pub fn load_pooled(path: &Path, threads: usize, pool: &Arc<ModelPool>) -> Result<Self> {
+        Ok(Self {
+            model: pool.load(path, SCNN_INPUT, SCNN_OUTPUT, threads)?,
             input: vec![0.0; PIXELS],
         })
     }

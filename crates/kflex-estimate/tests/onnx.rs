@@ -284,3 +284,56 @@ fn scnn_embeds_silhouettes_as_the_network_does() {
         Err(EstimateError::ModelMismatch { .. })
     ));
 }
+
+/// Networks made through a pool go back to it when dropped and serve the
+/// next load of the same file, with the same outputs as a fresh load. A
+/// file changed meanwhile (another SHA-256) or other threads are not served
+/// by a kept session; a model given back after its pool is gone is dropped.
+#[test]
+fn a_pool_serves_a_kept_session_of_the_same_file_only() {
+    use kflex_estimate::{ModelPool, Scnn};
+    let dir = scratch("pool");
+    let path = dir.join("kbjae.onnx");
+    std::fs::copy(data("kbjae_test.onnx"), &path).unwrap();
+    let (inputs, _) = expected();
+    let outputs = |k: &mut Kbjae| -> Vec<f64> {
+        inputs
+            .iter()
+            .map(|x| k.predict(x[0], x[1]).unwrap())
+            .collect()
+    };
+    let fresh = outputs(&mut Kbjae::load(&path).unwrap());
+
+    let pool = ModelPool::new();
+    let first = Kbjae::load_pooled(&path, &pool).unwrap();
+    let sha = first.sha256().to_string();
+    assert_eq!(pool.kept(), 0);
+    drop(first);
+    assert_eq!(pool.kept(), 1);
+    let mut again = Kbjae::load_pooled(&path, &pool).unwrap();
+    assert_eq!(pool.kept(), 0, "the kept session serves the load");
+    assert_eq!(outputs(&mut again), fresh);
+    drop(again);
+
+    // another network at the same path is loaded anew
+    std::fs::copy(data("kbjae_backlash_test.onnx"), &path).unwrap();
+    let other = Kbjae::load_pooled(&path, &pool).unwrap();
+    assert_ne!(other.sha256(), sha);
+    assert_eq!(pool.kept(), 1, "the kept session is not the file's now");
+    drop(other);
+    assert_eq!(pool.kept(), 2);
+
+    // other threads are another session
+    let scnn = data("scnn_test.onnx");
+    drop(Scnn::load_pooled(&scnn, 1, &pool).unwrap());
+    assert_eq!(pool.kept(), 3);
+    let two = Scnn::load_pooled(&scnn, 2, &pool).unwrap();
+    assert_eq!((two.threads(), pool.kept()), (2, 3));
+    let one = Scnn::load_pooled(&scnn, 1, &pool).unwrap();
+    assert_eq!((one.threads(), pool.kept()), (1, 2));
+
+    // a pool gone: its models are dropped as they come back
+    drop(pool);
+    drop((two, one));
+    let _ = std::fs::remove_dir_all(&dir);
+}
