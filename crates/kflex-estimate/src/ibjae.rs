@@ -342,12 +342,18 @@ impl HiddenPartGrids {
             .map(|g| g.lock().unwrap_or_else(PoisonError::into_inner))
     }
 
-    /// Whether every band's silhouettes are rendered.
+    /// Whether every band's silhouettes are rendered (a band another
+    /// reader is rendering or searching now counts as not ready, without
+    /// waiting for it).
     fn ready(&self) -> bool {
-        self.bands
-            .iter()
-            .enumerate()
-            .all(|(b, db)| self.band(b).is_some_and(|g| g.len() >= db.index.len()))
+        self.bands.iter().zip(self.grid.iter()).all(|(db, g)| {
+            let g = match g.try_lock() {
+                Ok(g) => g,
+                Err(std::sync::TryLockError::Poisoned(p)) => p.into_inner(),
+                Err(std::sync::TryLockError::WouldBlock) => return false,
+            };
+            g.len() >= db.index.len()
+        })
     }
 }
 
@@ -973,10 +979,13 @@ impl Ibjae {
     /// renders the first time a band needs them: 6–18 ms for a band of the
     /// full range, once, in whichever control tick first reads a taped frame
     /// in it itself (a reading taken from another reader through
-    /// [`Ibjae::read_sharing`] renders nothing). A controller with a
-    /// deadline per tick calls this once at
-    /// start-up (about 0.3 s for the 28 bands of the full range), after
-    /// which no read renders. Nothing to do without the silhouette check.
+    /// [`Ibjae::read_sharing`] renders nothing). With grids shared
+    /// ([`Ibjae::with_shared_silhouette_check`]) a band is rendered once for
+    /// every reader sharing them, so one reader's call prepares them all, and
+    /// a reader that needs a band another is rendering waits for it. A
+    /// controller with a deadline per tick calls this once at start-up
+    /// (about 0.3 s for the 28 bands of the full range), after which no read
+    /// renders. Nothing to do without the silhouette check.
     pub fn prepare_hidden_parts(&mut self) {
         if let Some(check) = self.check.as_mut() {
             for (b, db) in self.bands.iter().enumerate() {

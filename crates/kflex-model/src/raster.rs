@@ -482,8 +482,9 @@ impl Lanes {
     /// Lane `k`'s first hit after [`Lanes::cast`], if its ray met a body.
     #[inline]
     fn hit(&self, scene: &Scene, k: usize) -> Option<SurfaceHit> {
+        // a miss is +∞, a lane past the rays loaded −∞
         match self.t.get(k) {
-            Some(&t) if t < f64::INFINITY => {}
+            Some(&t) if t.is_finite() => {}
             _ => return None,
         }
         let d = Vector3::new(self.dx[k], self.dy[k], self.dz[k]);

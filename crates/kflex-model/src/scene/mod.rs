@@ -631,6 +631,7 @@ impl SceneRenderer {
         } = self;
         edge_pixels.clear();
         edge_points.clear();
+        queue.clear();
         let (work_x0, work_y0, work_w) = (work.x0 as usize, work.y0 as usize, work.width as usize);
         // row `y` of `inside` (the work region holds the rows next to the region's)
         let row = |y: usize| &inside[(y - work_y0) * work_w..(y - work_y0 + 1) * work_w];

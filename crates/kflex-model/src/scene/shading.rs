@@ -71,10 +71,13 @@ impl Surroundings<'_> {
     }
 
     /// Whether the image is the camera's whole frame (so that every
-    /// clamped pixel is in it).
+    /// clamped pixel is in it), with every value's index within `i32` (the
+    /// AVX2 copy computes them in 32 bits; a valid camera's sides are at
+    /// most 16,384 px, so this always holds for one).
     fn whole(&self) -> bool {
         let k = &self.camera.intrinsics;
-        self.image.len() >= 3 * k.width as usize * k.height as usize
+        let values = 3 * k.width as usize * k.height as usize;
+        values <= i32::MAX as usize && self.image.len() >= values
     }
 }
 
@@ -204,7 +207,8 @@ const QUEUE: usize = 64;
 ///
 /// Steel's colours are made eight to an instruction where the processor
 /// has AVX2, as [`steel_colour`] makes them one at a time (the same bits; a
-/// test holds them equal), the reflected pixels gathered. Then the queue's
+/// test holds them equal), the reflected pixels read one at a time (a gather
+/// instruction is slower on processors whose microcode guards it). Then the queue's
 /// looks, in the order they came, go into their pixels: an inner pixel
 /// takes its look's colour, an edge's pixel adds a quarter of each of its
 /// four rays' (from black, in their order).
@@ -311,6 +315,13 @@ impl LookQueue {
         if self.len == QUEUE {
             self.flush(env, patches);
         }
+    }
+
+    /// Empties the queue, dropping what it holds (a frame starts with it:
+    /// a frame cut short leaves no look for the next one's pixels).
+    pub(super) fn clear(&mut self) {
+        self.len = 0;
+        self.steel = 0;
     }
 
     /// Makes the queued looks and puts them into their pixels' colours in
