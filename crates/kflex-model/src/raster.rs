@@ -1158,6 +1158,17 @@ mod tests {
     use crate::camera::Intrinsics;
     use crate::instrument::Instrument;
 
+    /// A hit's bits, to compare two casts exactly.
+    fn bits(h: &SurfaceHit) -> (u64, usize, Vector3<u64>, u64, bool) {
+        (
+            h.t.to_bits(),
+            h.body,
+            h.normal.map(f64::to_bits),
+            h.arc_mm.to_bits(),
+            h.on_end,
+        )
+    }
+
     /// Casting a tile's rays body by body finds, pixel for pixel, the hit a
     /// lone ray finds through the nearest-first list, bit for bit.
     #[test]
@@ -1204,15 +1215,6 @@ mod tests {
                         in_windows += lone.len();
                     }
                     assert_eq!(tiled.len(), lone.len(), "θ = {theta}, d = {d}");
-                    let bits = |h: &SurfaceHit| {
-                        (
-                            h.t.to_bits(),
-                            h.body,
-                            h.normal.map(f64::to_bits),
-                            h.arc_mm.to_bits(),
-                            h.on_end,
-                        )
-                    };
                     for ((x, y, a), (lx, ly, b)) in tiled.iter().zip(&lone) {
                         assert_eq!((x, y), (lx, ly));
                         assert_eq!(bits(a), bits(b), "θ = {theta}, d = {d}, pixel ({x}, {y})");
@@ -1255,15 +1257,6 @@ mod tests {
                         let (u, v) = points[i];
                         let (lone, ld) = scene.first_hit(&camera, bodies, u, v);
                         assert_eq!(d.map(f64::to_bits), ld.map(f64::to_bits));
-                        let bits = |h: &SurfaceHit| {
-                            (
-                                h.t.to_bits(),
-                                h.body,
-                                h.normal.map(f64::to_bits),
-                                h.arc_mm.to_bits(),
-                                h.on_end,
-                            )
-                        };
                         assert_eq!(
                             hit.as_ref().map(bits),
                             lone.as_ref().map(bits),
