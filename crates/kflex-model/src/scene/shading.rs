@@ -32,6 +32,14 @@ pub(super) fn falloff(t_mm: f64) -> f64 {
     (LIGHT_MM / t_mm.max(1.0)).powi(2).min(2.5)
 }
 
+/// [`falloff`] in `f32`, as the instrument's shading makes it (the AVX2
+/// copy in [`steel_colours_avx2`] makes the same operations).
+#[inline]
+fn falloff_f32(t_mm: f32) -> f32 {
+    let fall = LIGHT_MM as f32 / t_mm.max(1.0);
+    (fall * fall).min(2.5)
+}
+
 /// What the steel reflects: the tissue in front of the camera (the
 /// background image, full frame, linear RGB), and its mean colour.
 pub(super) struct Surroundings<'a> {
@@ -120,9 +128,7 @@ fn steel_colour(
     gloss: f32,
     env: &Surroundings<'_>,
 ) -> [f32; 3] {
-    // falloff(t): (30 / max(t, 1))², at most 2.5
-    let fall = LIGHT_MM as f32 / t.max(1.0);
-    let fall = (fall * fall).min(2.5);
+    let fall = falloff_f32(t);
     let nd = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
     let cos = (-nd).clamp(0.0, 1.0);
     let light = INSTRUMENT_LIGHT as f32 * fall;
@@ -162,8 +168,7 @@ const SHEEN_FLOOR: f32 = 1e-3;
 /// The tape's colour where a ray along unit `d` meets it at distance `t`
 /// (mm), outward normal `n`: matte, Lambert and a faint sheen.
 fn tape_colour(d: [f32; 3], n: [f32; 3], t: f32) -> [f32; 3] {
-    let fall = LIGHT_MM as f32 / t.max(1.0);
-    let light = INSTRUMENT_LIGHT as f32 * (fall * fall).min(2.5);
+    let light = INSTRUMENT_LIGHT as f32 * falloff_f32(t);
     let cos = (-(n[0] * d[0] + n[1] * d[1] + n[2] * d[2])).clamp(0.0, 1.0);
     let diffuse = (0.15 + 0.85 * cos) * light;
     // cos¹⁶, its base held above subnormal powers (0.01¹⁶ = 1e-32)
