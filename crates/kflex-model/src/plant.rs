@@ -109,7 +109,8 @@ impl PlantConfig {
     /// checked in this order: the joint's ([`JointParams::validate`]), the
     /// geometry's ([`TendonGeometry::validate`] over `±joint.max_theta_deg`),
     /// the sheath's ([`SheathParams::validate`]), `sheath_deg` outside
-    /// `[0, 3600]` deg, the seating's ([`Seating::validate`]), the translation stage's
+    /// `[0, 3600]` deg or past what the sheath's element chain resolves
+    /// ([`SheathParams::max_sheath_deg`]), the seating's ([`Seating::validate`]), the translation stage's
     /// ([`TranslationParams::validate`]), then, with noise on,
     /// `noise.theta_std_deg` outside `[0, 90]` deg or
     /// `noise.translation_std_mm` outside `[0, 100]` mm.
@@ -118,7 +119,9 @@ impl PlantConfig {
         self.geometry
             .validate(self.joint.max_theta_deg.to_radians())?;
         self.sheath.validate()?;
-        Bounds::closed(0.0, 3600.0).check("sheath_deg", self.sheath_deg)?;
+        // the element chain resolves a total wrap of `elements / μ` rad
+        // (what `TendonSheath::new` checks): said here, on the values as given
+        Bounds::closed(0.0, self.sheath.max_sheath_deg()).check("sheath_deg", self.sheath_deg)?;
         self.seating.validate()?;
         self.translation.validate()?;
         if let Some(n) = self.noise {
@@ -147,7 +150,11 @@ impl PlantConfig {
     /// uniformly from `±`[`HOMING_SHARE`] of the play's half-width, its
     /// middle 60 % (where it was zeroed, which offsets every command all
     /// run). Deterministic in `seed`. This configuration is checked first,
-    /// so an error names the value as given, not a scaled one.
+    /// so an error names the value as given, not a scaled one; and a draw
+    /// never makes a valid configuration invalid: a friction coefficient
+    /// drawn past what the element chain resolves at this wrap
+    /// (`μ (Φ₀ + Φ_s) ≤ elements` rad, [`SheathParams::max_wrap_deg`]) is held
+    /// at that limit.
     ///
     /// The split and the homing are what put the run-to-run spread within a
     /// factor of 3 of the paper's ± at every sheath angle, for the RMSE and
@@ -190,6 +197,15 @@ impl PlantConfig {
         out.sheath.backlash_engagement_mm = out.sheath.backlash_engagement_mm.min(10.0);
         out.sheath.presliding_mm = out.sheath.presliding_mm.clamp(1e-5, 10.0);
         out.sheath.route_wrap_deg = out.sheath.route_wrap_deg.min(3600.0);
+        // a larger μ or route wrap drawn near the chain's limit would refuse a
+        // sheath angle the configuration as given accepts (an error naming a
+        // bound the user never set): such a draw of μ is held at the limit,
+        // `μ (Φ₀ + Φ_s) ≤ elements` rad, a hair inside it
+        let wrap_rad = (out.sheath.route_wrap_deg + out.sheath_deg).to_radians();
+        if wrap_rad > 0.0 {
+            let limit = f64::from(out.sheath.elements) / wrap_rad * (1.0 - 1e-9);
+            out.sheath.friction_coefficient = out.sheath.friction_coefficient.min(limit);
+        }
         out.seating = Seating {
             friction_a: rng.random_range(-1.0..=1.0),
             friction_b: rng.random_range(-1.0..=1.0),

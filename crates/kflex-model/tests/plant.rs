@@ -661,6 +661,44 @@ fn a_perturbed_config_reports_the_value_as_given() {
     Plant::new(p).unwrap();
 }
 
+#[test]
+fn a_sheath_angle_the_config_accepts_every_repeat_accepts() {
+    // the element chain resolves μ (Φ₀ + Φ_s) ≤ elements rad: 10 elements at
+    // μ = 0.3 take 1,910 deg in all, so the nominal accepts a 1,500 deg
+    // sheath; a repeat that drew μ up to 1.5 times would refuse it with a
+    // bound of its own, so a draw past the limit is held at it
+    let mut config = PlantConfig {
+        sheath_deg: 1500.0,
+        ..PlantConfig::default()
+    };
+    config.sheath.elements = 10;
+    Plant::new(config).unwrap();
+    let mut held = 0;
+    for seed in 0..40 {
+        let p = config.perturbed(seed, 0.5).unwrap();
+        // (the route wrap is drawn too)
+        let limit =
+            f64::from(p.sheath.elements) / (p.sheath.route_wrap_deg + p.sheath_deg).to_radians();
+        assert!(p.sheath.friction_coefficient <= limit, "seed {seed}");
+        held += usize::from(p.sheath.friction_coefficient > 0.999 * limit);
+        Plant::new(p).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+    }
+    assert!(
+        held > 0,
+        "no draw reached the limit: the test shows nothing"
+    );
+    // past the limit the configuration itself is refused, with its own bound
+    let err = Plant::new(PlantConfig {
+        sheath_deg: 1950.0,
+        ..config
+    })
+    .unwrap_err();
+    let range = err.range().expect("a range error");
+    assert_eq!((range.name, range.value), ("sheath_deg", 1950.0));
+    assert_eq!(range.bounds.max, config.sheath.max_sheath_deg());
+    assert!(range.bounds.max > 1890.0 && range.bounds.max < 1950.0);
+}
+
 /// Mean θ_a over the last period of the paper's input on `config`'s plant.
 fn mean_theta_last_period(config: PlantConfig) -> f64 {
     let dt = 0.01;
