@@ -165,20 +165,18 @@ pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, p: &SegmentParams
             .sum::<f32>();
         let spread = 1.0 / pa.count + 1.0 / pb.count;
         // the colour distance, then the chromaticity's: a mean of n pixels
-        // with noise σ has chromaticity noise about σ √2 / (L √n)
-        let close = gap < d2 + 3.0 * n2 * spread && {
-            let (ca, cb) = (pa.chroma, pb.chroma);
-            let l = pa.lum.min(pb.lum).max(0.05);
-            let dc2 = (ca[0] - cb[0]).powi(2) + (ca[1] - cb[1]).powi(2);
-            dc2 < c2 + 2.0 * n2 / (l * l) * spread
-        };
-        if close {
-            parent[rb as usize] = ra;
-            let count = pa.count + pb.count;
-            let (wa, wb) = (pa.count / count, pb.count / count);
-            regions[ra as usize] =
-                Region::of_mean([0, 1, 2].map(|k| wa * pa.mean[k] + wb * pb.mean[k]), count);
-        }
+        // with noise σ has chromaticity noise about σ √2 / (L √n); both
+        // read and the result selected, not branched on (which way a pair
+        // goes is not predictable)
+        let (ca, cb) = (pa.chroma, pb.chroma);
+        let l = pa.lum.min(pb.lum).max(0.05);
+        let dc2 = (ca[0] - cb[0]).powi(2) + (ca[1] - cb[1]).powi(2);
+        let close = (gap < d2 + 3.0 * n2 * spread) & (dc2 < c2 + 2.0 * n2 / (l * l) * spread);
+        let count = pa.count + pb.count;
+        let (wa, wb) = (pa.count / count, pb.count / count);
+        let joined = Region::of_mean([0, 1, 2].map(|k| wa * pa.mean[k] + wb * pb.mean[k]), count);
+        parent[rb as usize] = if close { ra } else { rb };
+        regions[ra as usize] = if close { joined } else { pa };
         close
     };
     for y in 0..rows {
