@@ -72,7 +72,8 @@ pub struct RunArgs {
     /// Plant configuration, TOML or JSON (by extension .toml or .json, else by
     /// content): fields of kflex_model::PlantConfig, missing fields take
     /// defaults. --sheath, --joint, --seed and the noise (--no-noise) replace
-    /// the file's sheath_deg, joint_model, seed and noise; the run says so.
+    /// the file's sheath_deg, joint_model, seed and noise, and a --spread
+    /// above 0 its seating (drawn for each repeat); the run says so.
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Write DIR/results.json (with --scenario also DIR/results.csv and the
@@ -135,7 +136,8 @@ pub struct RunArgs {
 
 impl RunArgs {
     /// The flags that replace a [`PlantConfig`] field: their ids.
-    const OVERRIDING: [&'static str; 5] = ["sheath", "joint", "seed", "no_noise", "repeats"];
+    const OVERRIDING: [&'static str; 6] =
+        ["sheath", "joint", "seed", "no_noise", "repeats", "spread"];
 
     /// Records which of the overriding flags `matches` (this subcommand's) got
     /// from the command line, for the run's notes.
@@ -185,10 +187,20 @@ impl RunArgs {
             ("noise", noise),
         ]
         .into_iter()
-        .filter_map(|(field, by)| {
+        .map(|(field, by)| (field, by, ""))
+        // a spread draws each repeat's seating (its friction states and
+        // where the drive was homed); without one the file's seating stays
+        .chain((self.spread > 0.0).then(|| {
+            (
+                "seating",
+                self.flag("spread", format!("--spread {}", num(self.spread))),
+                " (each repeat draws its own)",
+            )
+        }))
+        .filter_map(|(field, by, why)| {
             file.fields.get(field).map(|value| {
                 format!(
-                    "note: {by} overrides {field} = {value} from {}",
+                    "note: {by} overrides {field} = {value} from {}{why}",
                     path.display()
                 )
             })

@@ -429,6 +429,19 @@ fn flags_that_override_the_config_file_say_so() {
         )),
         "{stdout}"
     );
+    // a spread draws each repeat's seating: the file's is replaced, and said
+    let config = dir.join("seated.toml");
+    std::fs::write(&config, "[seating]\nbacklash = 1.0\n").unwrap();
+    let path = config.to_str().unwrap();
+    let stdout = stdout_of(&short_run(&["--config", path]));
+    assert!(
+        stdout.contains("note: --spread 0.15 (the default) overrides seating = ")
+            && stdout.contains(&format!("from {path} (each repeat draws its own)")),
+        "{stdout}"
+    );
+    // without a spread the file's seating stays: no note
+    let stdout = stdout_of(&short_run(&["--config", path, "--spread", "0"]));
+    assert!(!stdout.contains("seating"), "{stdout}");
     // fields no flag replaces: no notes
     let config = dir.join("quiet.toml");
     std::fs::write(&config, "[geometry]\nn_segments = 2\n").unwrap();
