@@ -165,7 +165,7 @@ fn the_default_element_count_is_converged_to_2_percent() {
         plant.sheath.elements = elements;
         run(OpenLoopGrid {
             plant,
-            sheaths_deg: vec![0.0, 270.0],
+            sheaths_deg: vec![0.0, 90.0, 180.0, 270.0],
             ..nominal()
         })
     };
@@ -180,6 +180,43 @@ fn the_default_element_count_is_converged_to_2_percent() {
                 (a / b - 1.0).abs() < 0.02,
                 "sheath {}: {a} with the default elements vs {b} with four times as many",
                 d.sheath_deg
+            );
+        }
+    }
+}
+
+#[test]
+fn the_loop_does_not_depend_on_the_rate() {
+    // quasi-static tendons and Dahl friction driven by displacement, no
+    // viscous term: the loop is the same at a twentieth of the paper's rate
+    // and at six times it (CALIBRATION.md, "With the rate"; the differences
+    // are where a 10 ms tick samples the loop)
+    use kflex_control::OpenLoopScenario;
+    use kflex_model::{Sine, Trajectory};
+    let at = |frequency_hz: f64| {
+        let mut plant = PlantConfig::default();
+        plant.joint.gravity_m_per_s2 = [0.0; 3];
+        run(OpenLoopGrid {
+            plant,
+            scenario: OpenLoopScenario {
+                trajectory: Trajectory::Sine(Sine {
+                    frequency_hz,
+                    ..Sine::PAPER
+                }),
+                period_s: 1.0 / frequency_hz,
+                ..OpenLoopScenario::default()
+            },
+            ..nominal()
+        })
+    };
+    let paper = at(0.159);
+    for f in [0.05, 1.0] {
+        for (r, p) in at(f).iter().zip(&paper) {
+            let (w, wp) = (r.max_hysteresis_deg.mean, p.max_hysteresis_deg.mean);
+            assert!(
+                (w / wp - 1.0).abs() < 0.01,
+                "sheath {}: loop width {w} at {f} Hz vs {wp} at 0.159 Hz",
+                r.sheath_deg
             );
         }
     }
