@@ -7,8 +7,9 @@
 //! Columns are the occlusion cases — none, 20 % middle, 40 % middle, 40 %
 //! distal — and the poses (θ, d) are a Latin square over them, so each
 //! background shows every occlusion and every pose: the first row
-//! (30°, 10 mm), (−90°, 5 mm), (90°, 20 mm), (0°, 35 mm), the second the
-//! same poses shifted by two columns.
+//! (30°, 10 mm), (−90°, 8 mm), (90°, 20 mm), (0°, 35 mm), the second the
+//! same poses shifted by two columns: ±90° and the ends of the working
+//! range's translations (`PoseRange::FULL`, 8–40 mm) among them.
 use kflex_model::Camera;
 use kflex_model::Instrument;
 use kflex_model::{Background, FrameParams, Occlusion, SceneRenderer};
@@ -18,7 +19,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .nth(1)
         .unwrap_or_else(|| "gallery.png".into());
     let camera = Camera::default();
-    let poses = [(30.0, 10.0), (-90.0, 5.0), (90.0, 20.0), (0.0, 35.0)];
+    let poses = [(30.0, 10.0), (-90.0, 8.0), (90.0, 20.0), (0.0, 35.0)];
     let cases = [None, Some((0.2, 0.5)), Some((0.4, 0.5)), Some((0.4, 1.0))];
     // each tile a 3 × 3 box average of the 640 × 480 frame
     let (tw, th) = (213u32, 160u32);
