@@ -74,6 +74,18 @@ fn tape_covers_the_requested_share_where_asked() {
             .unwrap();
         camera.project(last.b_mm).unwrap()
     };
+    // and a point on the first jaw's axis, on its tapered end a fifth of the
+    // way from its tip: distal tape ends at the tip, so it covers the jaws
+    let jaw_tip = {
+        let jaw = shape
+            .bodies
+            .iter()
+            .rfind(|c| matches!(c.part, kflex_model::Part::Jaw(0)))
+            .unwrap();
+        camera
+            .project([0, 1, 2].map(|k| 0.8 * jaw.b_mm[k] + 0.2 * jaw.a_mm[k]))
+            .unwrap()
+    };
     // the share is measured where IBJAE looks: by default the working
     // region of the pose, else the region given
     let band = WorkingRegions::full(&camera)
@@ -117,6 +129,10 @@ fn tape_covers_the_requested_share_where_asked() {
         let at_tip = f.occluder.get(near_tip[0] as u32, near_tip[1] as u32);
         if position == 1.0 {
             assert!(at_tip, "distal tape must cover the tip region");
+            assert!(
+                f.occluder.get(jaw_tip[0] as u32, jaw_tip[1] as u32),
+                "distal tape must reach the jaws' tips"
+            );
         }
         if position == 0.0 {
             assert!(!at_tip, "proximal tape must leave the tip free");
@@ -125,6 +141,57 @@ fn tape_covers_the_requested_share_where_asked() {
     let clean = frame(FrameParams::default());
     assert_eq!(clean.occluder.count(), 0);
     assert_eq!(clean.instrument, silhouette);
+}
+
+/// The tape is red only where it lies: once, edge pixels that the exact
+/// hit missed were shaded flat with the last body's arc length, and with
+/// distal tape 320–382 of them along the shaft turned red (an outline).
+/// On blue-green tissue, no pixel more than 2 px from the tape's mask is
+/// red.
+#[test]
+fn no_red_outline_away_from_the_tape() {
+    use kflex_model::Tissue;
+    for (theta, d) in [(30.0, 10.0), (-60.0, 20.0), (0.0, 35.0)] {
+        let shape = Instrument::kflex().shape(theta, d).unwrap();
+        let f = SceneRenderer::new()
+            .render(
+                &Camera::default(),
+                &shape,
+                &FrameParams {
+                    tissue: Tissue::BlueGreen,
+                    occlusion: Some(Occlusion::new(0.4, 1.0)),
+                    ..FrameParams::default()
+                },
+            )
+            .unwrap();
+        let (w, h) = (f.width as i64, f.height as i64);
+        let near_tape = |x: i64, y: i64| {
+            (-2..=2).any(|dy| {
+                (-2..=2).any(|dx| {
+                    let (u, v) = (x + dx, y + dy);
+                    (0..w).contains(&u) && (0..h).contains(&v) && f.occluder.get(u as u32, v as u32)
+                })
+            })
+        };
+        let mut red_elsewhere = 0;
+        let mut red = 0;
+        for y in 0..h {
+            for x in 0..w {
+                let i = 3 * (y * w + x) as usize;
+                let [r, g, b] = [0, 1, 2].map(|k| i32::from(f.rgb[i + k]));
+                if r > g + 40 && r > b + 40 {
+                    red += 1;
+                    red_elsewhere += usize::from(!near_tape(x, y));
+                }
+            }
+        }
+        // the tape itself is red (the check can see red)
+        assert!(red > 100, "({theta}, {d}): {red} red pixels");
+        assert_eq!(
+            red_elsewhere, 0,
+            "({theta}, {d}): red pixels away from the tape"
+        );
+    }
 }
 
 #[test]

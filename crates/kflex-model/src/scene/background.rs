@@ -149,7 +149,7 @@ impl Organ {
 /// view at the old backgrounds' level), the light scattered back by the
 /// surrounding wet tissue (a floor under the cosine term), the vessels'
 /// count and strength, and the wet highlights' count.
-struct Look {
+pub(super) struct Look {
     exposure: f32,
     ambient: f32,
     vessels: (u32, u32),
@@ -157,7 +157,7 @@ struct Look {
     highlights: (u32, u32),
 }
 
-fn look(kind: Background) -> Look {
+pub(super) fn look(kind: Background) -> Look {
     match kind {
         Background::Colon => Look {
             exposure: 2.7,
@@ -241,7 +241,7 @@ pub(super) fn background(kind: Background, tissue: Tissue, seed: u64, w: u32, h:
 /// inverse-square falloff of the distance along each pixel's ray, times the
 /// cosine between the ray and the tissue's normal (from the depth map's
 /// slope), over a floor of scattered light. Returns the cosines.
-fn light(img: &mut [f32], depth: &[f32], w: usize, h: usize, look: &Look) -> Vec<f32> {
+pub(super) fn light(img: &mut [f32], depth: &[f32], w: usize, h: usize, look: &Look) -> Vec<f32> {
     let mut cos = vec![1.0f32; w * h];
     if w < 2 || h < 2 {
         return cos;

@@ -573,6 +573,70 @@ mod tests {
         c.map(f32::to_bits)
     }
 
+    /// The tape's band takes `fraction` of the pixels' arcs, placed by
+    /// `position`: the middle one leaves as many pixels before it as after
+    /// it, the distal one ends at the tip (the largest arc), the proximal
+    /// one starts at the smallest.
+    #[test]
+    fn the_tape_band_is_placed_along_the_pixels_it_covers() {
+        // 1,000 pixels' arcs, out of order, 0.1 mm apart
+        let arcs: Vec<f32> = (0..1000).map(|i| ((i * 379) % 1000) as f32 * 0.1).collect();
+        let band = |fraction: f64, position: f64| {
+            let (lo, hi) =
+                tape_band(&mut arcs.clone(), Occlusion::new(fraction, position)).expect("a band");
+            let before = arcs.iter().filter(|&&a| a < lo).count();
+            let inside = arcs.iter().filter(|&&a| a >= lo && a <= hi).count();
+            let after = arcs.iter().filter(|&&a| a > hi).count();
+            (before, inside, after)
+        };
+        assert_eq!(band(0.2, 0.5), (400, 200, 400));
+        assert_eq!(band(0.4, 0.5), (300, 400, 300));
+        assert_eq!(band(0.4, 1.0), (600, 400, 0));
+        assert_eq!(band(0.4, 0.0), (0, 400, 600));
+        assert_eq!(band(0.7, 0.3), (90, 700, 210));
+        // no tape: no band
+        assert_eq!(tape_band(&mut arcs.clone(), Occlusion::new(0.0, 0.5)), None);
+        assert_eq!(tape_band(&mut [], Occlusion::new(0.4, 0.5)), None);
+    }
+
+    /// The far tip was once lost because the light fell off on the steel
+    /// but not on the tissue behind it: both now take one falloff. A tissue
+    /// plane facing the camera and steel facing it, each moved from 30 to
+    /// 60 mm, keep their colours' ratio: each darkens by (30/60)².
+    #[test]
+    fn tissue_and_steel_darken_alike_with_distance() {
+        use super::super::background::{light, look};
+        use crate::Background;
+        let camera = Camera::default();
+        let (w, h) = (8, 8);
+        let image = vec![0.5f32; 3 * w * h];
+        let env = Surroundings {
+            camera: &camera,
+            image: &image,
+            mean: [0.5; 3],
+        };
+        let tissue = |z: f32| {
+            let mut img = vec![1.0f32; 3 * w * h];
+            light(&mut img, &vec![z; w * h], w, h, &look(Background::Colon));
+            // a pixel beside the centre: its ray is all but along the axis
+            img[3 * (h / 2 * w + w / 2)]
+        };
+        let steel = |t: f32| steel_colour([0.0, 0.0, 1.0], [0.0, 0.0, -1.0], t, 1.0, 1.0, &env);
+        let expected = (30.0f32 / 60.0).powi(2);
+        let tissue_ratio = tissue(60.0) / tissue(30.0);
+        assert!(
+            (tissue_ratio / expected - 1.0).abs() < 1e-3,
+            "tissue {tissue_ratio}"
+        );
+        for (far, near) in steel(60.0).iter().zip(steel(30.0)) {
+            let steel_ratio = far / near;
+            assert!(
+                (steel_ratio / tissue_ratio - 1.0).abs() < 1e-3,
+                "steel {steel_ratio} vs tissue {tissue_ratio}"
+            );
+        }
+    }
+
     /// The queued looks (AVX2 where the processor has it, and the portable
     /// copy) give, pixel for pixel, the bits of [`surface_colour`]'s colours:
     /// steel and tape, centre and off-centre rays, reflections ahead and
