@@ -556,6 +556,23 @@ fn fully_taped_instrument_is_an_error() {
     assert!(dir.join("frame.png").exists());
 }
 
+#[test]
+fn a_frame_the_segmentation_cannot_read_is_an_error() {
+    // noise of σ 1 on the [0, 1] image leaves nothing to segment: the frame
+    // and the masks are written (they are what was asked), then the
+    // segmentation's failure ends the command with a non-zero exit
+    let dir = scratch("render-noise");
+    let d = dir.to_str().unwrap();
+    assert_refused(
+        &["render", "--noise", "1", "--out", d],
+        "segmentation: no instrument found",
+    );
+    assert!(dir.join("frame.png").exists());
+    assert!(
+        !dir.join("segmentation_roi.png").exists() && !dir.join("segmentation_48.png").exists()
+    );
+}
+
 /// Runs `kflex-cli run --scenario FILE ARGS… --out DIR`, which must succeed.
 fn run_scenario(file: &str, args: &[&str], out_dir: &str) -> Output {
     let mut all = vec!["run", "--scenario", file];
