@@ -77,9 +77,11 @@ fn rmse_grows_with_the_bend_and_the_loop_width_saturates() {
     // The goals: RMSE growing at every 15 deg from 0 to 270, the loop width
     // growing up to 180 deg and staying within 10 % of its largest beyond.
     // Measured (CALIBRATION.md): the RMSE grows at every step; the width
-    // grows up to about 60 deg (by 12 %), then stays within 7.2 % of its
-    // largest out to 270 deg, so it does not grow up to 180 deg as the
-    // paper's does (9.2 to 18.3 deg).
+    // grows up to about 60 deg (by 13 %), dips by 4 % to 105 deg and is back
+    // at its largest by 180 deg, then stays within 5.5 % of it out to
+    // 270 deg: it grows up to 180 deg read at the paper's sheath angles (the
+    // fit's goal), not at every step, and far less than the paper's (9.2 to
+    // 18.3 deg).
     let sheaths: Vec<f64> = (0..=18).map(|k| 15.0 * f64::from(k)).collect();
     let rows = run(OpenLoopGrid {
         sheaths_deg: sheaths,
@@ -107,6 +109,11 @@ fn rmse_grows_with_the_bend_and_the_loop_width_saturates() {
         15 * peak
     );
     assert!(largest > 1.1 * widths[0], "{widths:?}");
+    // ... up to 180 deg at the paper's sheath angles, 0 < 90 < 180 ...
+    assert!(
+        widths[0] < widths[6] && widths[6] < widths[12],
+        "{widths:?}"
+    );
     // ... and then saturates rather than collapsing: from its peak on (the
     // goal asks it beyond 180 deg) within 10 % of its largest
     for (k, w) in widths.iter().enumerate().skip(peak) {
