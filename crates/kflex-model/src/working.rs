@@ -722,7 +722,7 @@ mod tests {
         // pair is identical), and the bend and gripper at least 40 % of the
         // silhouette at the mid-range d (measured 60–73 % at every d)
         for part in parts {
-            for d in [8.0, 9.0, 10.0, 12.5, 15.0, 17.0, 20.0] {
+            for d in (8..=20).map(f64::from).chain([12.5]) {
                 let (identical, share) = resolution(&regions, part, d);
                 assert_eq!(identical, 0, "θ {part:?}, d = {d}");
                 assert!(share >= 0.55, "θ {part:?}, d = {d}: share {share}");
@@ -755,15 +755,18 @@ mod tests {
         let regions = WorkingRegions::full(&camera).unwrap();
         let mut raster = Rasterizer::new();
         let mut mask = Mask::new(640, 480).unwrap();
+        // every band's poses on a grid: θ every 2° and d every mm, each
+        // range's ends included
+        let grid = |lo: f64, hi: f64, step: f64| {
+            let n = ((hi - lo) / step).ceil() as usize;
+            (0..=n).map(move |k| (lo + step * k as f64).min(hi))
+        };
         for b in regions.bands() {
             let ([t0, t1], [d0, d1]) = (b.poses.theta_deg, b.poses.translation_mm);
-            for (theta, d) in [
-                (t0, d0),
-                (t1, d0),
-                (t0, d1),
-                (t1, d1),
-                (0.5 * (t0 + t1), 0.5 * (d0 + d1)),
-            ] {
+            let poses: Vec<(f64, f64)> = grid(t0, t1, 2.0)
+                .flat_map(|theta| grid(d0, d1, 1.0).map(move |d| (theta, d)))
+                .collect();
+            for (theta, d) in poses {
                 let mut shape = instrument.shape(theta, d).unwrap();
                 shape.bodies.retain(|c| c.part != Part::Shaft);
                 mask.clear();
