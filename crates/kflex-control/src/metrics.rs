@@ -207,6 +207,30 @@ mod tests {
         assert!(w < 0.7 * LOOP_BIN_DEG, "{w}");
         assert!(rmse(&d, &a).unwrap() > 5.0);
         assert!(error_peak_to_peak(&d, &a).unwrap() > 14.0);
+        // the output peaks where the command does, at 0.7 · 50 − 3 = 32
+        let top = d.iter().copied().fold(f64::MIN, f64::max);
+        assert!((peak_loss(&d, &a).unwrap() - (top - (0.7 * top - 3.0))).abs() < 1e-12);
+    }
+
+    #[test]
+    fn peak_loss_compares_the_peaks_wherever_they_fall() {
+        // the command peaks at 50, the output at 42 later in the run:
+        // 8 short, whatever the lag between the peaks
+        let d = [0.0, 25.0, 50.0, 25.0, 0.0, 10.0];
+        let a = [0.0, 5.0, 30.0, 42.0, 20.0, 3.0];
+        assert_eq!(peak_loss(&d, &a).unwrap(), 8.0);
+        // an output that overshoots the command's peak loses a negative amount
+        assert_eq!(
+            peak_loss(&d, &[0.0, 0.0, 55.0, 0.0, 0.0, 0.0]).unwrap(),
+            -5.0
+        );
+        assert!(matches!(
+            peak_loss(&d, &[0.0; 5]),
+            Err(ControlError::NotEnoughData {
+                metric: "peak_loss",
+                ..
+            })
+        ));
     }
 
     #[test]
