@@ -444,7 +444,12 @@ fn element_ratio(mu_dphi: f64, z: f64) -> (f64, f64) {
 /// the differential stroke, half-width `drive_backlash_mm`, in [`crate::Plant`]),
 /// giving θ_b, and the motors take tendon `a` to `m_a = s(θ_b) − c(θ_b)` and
 /// `b` to `m_b = −s(θ_b) − c(θ_b)` ([`TendonSheath::advance`]), plus the path
-/// the bent sheath adds (`sheath_path_mm_per_rad`). When the joint lags
+/// the bent sheath adds (`sheath_path_mm_per_rad`). The controller computes
+/// both modes at θ_c; the play sits after it, in the drive that moves the
+/// pair, so the tendons receive the two modes of the angle the drive's
+/// output stands for, θ_b: inside the dead zone after a reversal both hold
+/// still (a common mode that kept moving there would have the pair take up
+/// or pay out length through a drive that is not turning). When the joint lags
 /// (θ_a < θ_b) the motors have paid out more common mode than the joint
 /// takes up, and both tendons lose tension: a lagging joint is also a
 /// slacker one.
