@@ -138,7 +138,7 @@ pub struct EstimatorTick<'a> {
     /// The master's command θ_d this tick, deg (θ_c where there is no
     /// compensator; in the pre-roll, the ramp's).
     pub theta_d_deg: f64,
-    /// Its rate θ_d', deg/s (KBJAE's rate input, see [`crate::estimators`]).
+    /// Its rate θ_d', deg/s (KBJAE's rate input).
     pub theta_d_rate_deg_per_s: f64,
     /// The newest frame that arrived this tick, if any.
     pub frame: Option<CameraFrame<'a>>,
@@ -780,7 +780,7 @@ impl ClosedLoopScenario {
     ///
     /// # Errors
     /// As [`ClosedLoopScenario::validate`]; the estimator's errors; a frame
-    /// whose pixels do not fill its window ([`ControlError::Worker`]).
+    /// whose pixels do not fill its window ([`crate::ControlError::Worker`]).
     pub fn replay(
         &self,
         estimator: &mut dyn AngleEstimator,

@@ -224,7 +224,7 @@ pub const MAX_BANDS: usize = 10_000;
 /// # Errors
 /// [`EstimateError::Io`] when the manifest or a band's file is missing (kind
 /// `NotFound`) or cannot be read; [`EstimateError::ModelFile`] for a
-/// manifest that is not a count of 1 to [`MAX_BANDS`]; as [`FeatureIndex::load`] and
+/// manifest that is not a count of 1 to 10,000; as [`FeatureIndex::load`] and
 /// [`BandDatabase::from_index`] for a damaged file;
 /// [`EstimateError::ModelMismatch`] naming both cameras for a database
 /// built for another camera.

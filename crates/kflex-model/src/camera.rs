@@ -264,7 +264,7 @@ impl Camera {
     ///
     /// # Errors
     /// As [`Intrinsics::validate`], then [`Lens::validate`]; then
-    /// [`ModelError::NonFinite`] naming `camera_from_overtube` for a NaN or
+    /// [`ModelError::NonFinite`](crate::ModelError::NonFinite) naming `camera_from_overtube` for a NaN or
     /// infinite entry of the mounting.
     pub fn validate(&self) -> Result<()> {
         self.intrinsics.validate()?;
