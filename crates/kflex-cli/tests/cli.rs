@@ -543,34 +543,35 @@ fn render_hd_segments_in_its_own_region() {
     assert!(dir.join("segmentation_48.png").exists());
 }
 
-/// Fully taped: the frame is written, then a clear non-zero error, not
-/// "no instrument" with exit code 0.
+/// A frame with nothing to segment: the frame is written (it is what was
+/// asked), then a clear non-zero error naming the cause, not "no
+/// instrument" with exit code 0; no segmentation file is left. Fully taped,
+/// the renderer says so before the segmentation runs; under noise of σ 1
+/// on the [0, 1] image the segmentation itself finds nothing.
 #[test]
-fn fully_taped_instrument_is_an_error() {
-    let dir = scratch("render-taped");
-    let d = dir.to_str().unwrap();
-    assert_refused(
-        &["render", "--occlusion", "1.0", "--out", d],
-        "no visible instrument in the region of interest",
-    );
-    assert!(dir.join("frame.png").exists());
-}
-
-#[test]
-fn a_frame_the_segmentation_cannot_read_is_an_error() {
-    // noise of σ 1 on the [0, 1] image leaves nothing to segment: the frame
-    // and the masks are written (they are what was asked), then the
-    // segmentation's failure ends the command with a non-zero exit
-    let dir = scratch("render-noise");
-    let d = dir.to_str().unwrap();
-    assert_refused(
-        &["render", "--noise", "1", "--out", d],
-        "segmentation: no instrument found",
-    );
-    assert!(dir.join("frame.png").exists());
-    assert!(
-        !dir.join("segmentation_roi.png").exists() && !dir.join("segmentation_48.png").exists()
-    );
+fn a_frame_with_nothing_to_segment_is_an_error() {
+    for (name, flag, value, cause) in [
+        (
+            "render-taped",
+            "--occlusion",
+            "1.0",
+            "no visible instrument in the region of interest",
+        ),
+        (
+            "render-noise",
+            "--noise",
+            "1",
+            "segmentation: no instrument found",
+        ),
+    ] {
+        let dir = scratch(name);
+        let d = dir.to_str().unwrap();
+        assert_refused(&["render", flag, value, "--out", d], cause);
+        assert!(dir.join("frame.png").exists(), "{name}");
+        for file in ["segmentation_roi.png", "segmentation_48.png"] {
+            assert!(!dir.join(file).exists(), "{name}: {file}");
+        }
+    }
 }
 
 /// Runs `kflex-cli run --scenario FILE ARGS… --out DIR`, which must succeed.
