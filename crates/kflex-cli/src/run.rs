@@ -6,7 +6,7 @@ use anyhow::{Context, Result, bail};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
 use kflex_control::{ControlError, GridRow, OpenLoopGrid, OpenLoopScenario};
-use kflex_model::{AuroraNoise, JointModelKind, PlantConfig};
+use kflex_model::{AuroraNoise, JointModelKind, PlantConfig, Seating};
 use serde::Serialize;
 
 use crate::config;
@@ -300,12 +300,18 @@ pub fn run(args: &RunArgs) -> Result<()> {
             let notes = args.override_notes(path, &file);
             // the file's values that stay, checked now and blamed on the
             // file (the ones the flags replace are not checked)
-            let mut kept = file.config;
+            let mut config = file.config;
+            if args.spread > 0.0 {
+                // each repeat draws its own seating: the file's is replaced
+                // (the notes say so), so it is neither checked nor used
+                config.seating = Seating::default();
+            }
+            let mut kept = config;
             kept.sheath_deg = 0.0;
             kept.noise = None;
             kept.validate()
                 .with_context(|| format!("{}: the plant configuration", path.display()))?;
-            (file.config, notes)
+            (config, notes)
         }
         None => (PlantConfig::default(), Vec::new()),
     };

@@ -442,6 +442,24 @@ fn flags_that_override_the_config_file_say_so() {
     // without a spread the file's seating stays: no note
     let stdout = stdout_of(&short_run(&["--config", path, "--spread", "0"]));
     assert!(!stdout.contains("seating"), "{stdout}");
+    // a spread given is not called the default
+    let stdout = stdout_of(&short_run(&["--config", path, "--spread", "0.3"]));
+    assert!(
+        stdout.contains("note: --spread 0.3 overrides seating = "),
+        "{stdout}"
+    );
+    // a seating the spread replaces is not checked; one that stays is
+    let config = dir.join("bad-seating.toml");
+    std::fs::write(&config, "[seating]\nbacklash = 5.0\n").unwrap();
+    let path = config.to_str().unwrap();
+    stdout_of(&short_run(&["--config", path]));
+    let out = short_run(&["--config", path, "--spread", "0"]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("seating.backlash") && stderr.contains(path),
+        "{stderr}"
+    );
     // fields no flag replaces: no notes
     let config = dir.join("quiet.toml");
     std::fs::write(&config, "[geometry]\nn_segments = 2\n").unwrap();

@@ -78,7 +78,7 @@ fn rmse_grows_with_the_bend_and_the_loop_width_saturates() {
     // growing up to 180 deg and staying within 10 % of its largest beyond.
     // Measured (CALIBRATION.md): the RMSE grows at every step; the width
     // grows up to about 60 deg (by 13 %), dips by 4 % to 105 deg and is back
-    // at its largest by 180 deg, then stays within 5.5 % of it out to
+    // within 0.3 % of its largest by 180 deg, then within 5.5 % of it out to
     // 270 deg: it grows up to 180 deg read at the paper's sheath angles (the
     // fit's goal), not at every step, and far less than the paper's (9.2 to
     // 18.3 deg).
@@ -195,7 +195,7 @@ fn the_default_element_count_is_converged_to_2_percent() {
 #[test]
 fn the_loop_does_not_depend_on_the_rate() {
     // quasi-static tendons and Dahl friction driven by displacement, no
-    // viscous term: the loop is the same at a twentieth of the paper's rate
+    // viscous term: the loop is the same at a third of the paper's rate
     // and at six times it (CALIBRATION.md, "With the rate"; the differences
     // are where a 10 ms tick samples the loop: at 1 Hz a tick moves the
     // command by up to 1.6 deg, and the widths of nearby fits move by up to

@@ -151,10 +151,12 @@ impl PlantConfig {
     /// middle 60 % (where it was zeroed, which offsets every command all
     /// run). Deterministic in `seed`. This configuration is checked first,
     /// so an error names the value as given, not a scaled one; and a draw
-    /// never makes a valid configuration invalid: a friction coefficient
-    /// drawn past what the element chain resolves at this wrap
+    /// never makes a valid configuration invalid: each drawn value is held
+    /// inside the range [`PlantConfig::validate`] allows, and a friction
+    /// coefficient drawn past what the element chain resolves at this wrap
     /// (`μ (Φ₀ + Φ_s) ≤ elements` rad, [`SheathParams::max_wrap_deg`]) is held
-    /// at that limit.
+    /// at that limit (for this configuration's `sheath_deg`: a sheath angle
+    /// set later, [`Plant::set_sheath_deg`], is checked against the drawn μ).
     ///
     /// The split and the homing are what put the run-to-run spread within a
     /// factor of 3 of the paper's ± at every sheath angle, for the RMSE and
@@ -192,11 +194,20 @@ impl PlantConfig {
         scale(&mut s.backlash_engagement_mm, BUILD_SHARE);
         scale(&mut s.sheath_path_mm_per_rad, BUILD_SHARE);
         scale(&mut out.joint.contact_stiffness_nmm_per_rad, BUILD_SHARE);
-        out.sheath.friction_coefficient = out.sheath.friction_coefficient.min(1.0);
-        out.sheath.drive_backlash_mm = out.sheath.drive_backlash_mm.min(10.0);
-        out.sheath.backlash_engagement_mm = out.sheath.backlash_engagement_mm.min(10.0);
-        out.sheath.presliding_mm = out.sheath.presliding_mm.clamp(1e-5, 10.0);
-        out.sheath.route_wrap_deg = out.sheath.route_wrap_deg.min(3600.0);
+        // each draw held inside the range `validate` allows (an open end
+        // just inside it), so a repeat names no value the user never set
+        let s = &mut out.sheath;
+        s.friction_coefficient = s.friction_coefficient.min(1.0);
+        s.pretension_n = s.pretension_n.min(1e3);
+        s.tendon_stiffness_n_per_mm = s.tendon_stiffness_n_per_mm.min(1e6_f64.next_down());
+        s.distal_stiffness_n_per_mm = s.distal_stiffness_n_per_mm.min(1e7_f64.next_down());
+        s.drive_backlash_mm = s.drive_backlash_mm.min(10.0);
+        s.backlash_engagement_mm = s.backlash_engagement_mm.min(10.0);
+        s.presliding_mm = s.presliding_mm.clamp(1e-5, 10.0);
+        s.sheath_path_mm_per_rad = s.sheath_path_mm_per_rad.clamp(-1.0, 1.0);
+        s.route_wrap_deg = s.route_wrap_deg.min(3600.0);
+        let k = &mut out.joint.contact_stiffness_nmm_per_rad;
+        *k = k.min(1e6_f64.next_down());
         // a larger μ or route wrap drawn near the chain's limit would refuse a
         // sheath angle the configuration as given accepts (an error naming a
         // bound the user never set): such a draw of μ is held at the limit,

@@ -687,16 +687,40 @@ fn a_sheath_angle_the_config_accepts_every_repeat_accepts() {
         held > 0,
         "no draw reached the limit: the test shows nothing"
     );
-    // past the limit the configuration itself is refused, with its own bound
-    let err = Plant::new(PlantConfig {
+    // past the limit the configuration itself is refused, with its own
+    // bound, by its own check (before the translation stage's, which comes
+    // later in the order)
+    let mut past = PlantConfig {
         sheath_deg: 1950.0,
         ..config
-    })
-    .unwrap_err();
+    };
+    past.translation.max_mm = f64::NAN;
+    let err = past.validate().unwrap_err();
     let range = err.range().expect("a range error");
     assert_eq!((range.name, range.value), ("sheath_deg", 1950.0));
     assert_eq!(range.bounds.max, config.sheath.max_sheath_deg());
     assert!(range.bounds.max > 1890.0 && range.bounds.max < 1950.0);
+}
+
+#[test]
+fn every_drawn_value_stays_in_its_range() {
+    // values near the top of their ranges, drawn up to 1.5 times: each draw
+    // is held inside what `validate` allows
+    let mut config = PlantConfig::default();
+    config.sheath.pretension_n = 900.0;
+    config.sheath.sheath_path_mm_per_rad = -0.9;
+    config.sheath.tendon_stiffness_n_per_mm = 9e5;
+    config.sheath.distal_stiffness_n_per_mm = 9e6;
+    config.sheath.drive_backlash_mm = 9.0;
+    config.joint.contact_stiffness_nmm_per_rad = 9e5;
+    config.validate().unwrap();
+    let mut held = 0;
+    for seed in 0..40 {
+        let p = config.perturbed(seed, 0.5).unwrap();
+        p.validate().unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        held += usize::from(p.sheath.pretension_n == 1e3);
+    }
+    assert!(held > 0, "no draw reached the top: the test shows nothing");
 }
 
 /// Mean θ_a over the last period of the paper's input on `config`'s plant.

@@ -130,6 +130,10 @@ fn tape_covers_the_requested_share_where_asked() {
         if position == 1.0 {
             assert!(at_tip, "distal tape must cover the tip region");
             assert!(
+                silhouette.get(jaw_tip[0] as u32, jaw_tip[1] as u32),
+                "the jaw's point is not on the silhouette: move it"
+            );
+            assert!(
                 f.occluder.get(jaw_tip[0] as u32, jaw_tip[1] as u32),
                 "distal tape must reach the jaws' tips"
             );

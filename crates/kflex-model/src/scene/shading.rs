@@ -602,7 +602,10 @@ mod tests {
     /// The far tip was once lost because the light fell off on the steel
     /// but not on the tissue behind it: both now take one falloff. A tissue
     /// plane facing the camera and steel facing it, each moved from 30 to
-    /// 60 mm, keep their colours' ratio: each darkens by (30/60)².
+    /// 60 mm, keep their colours' ratio: each darkens by (30/60)². (Nearer
+    /// than 30 mm the steel's reflection of the tissue stays at its nominal
+    /// light, `fall.min(1)`, as the tissue it reflects is no brighter than
+    /// nominal: the two then part, by design.)
     #[test]
     fn tissue_and_steel_darken_alike_with_distance() {
         use super::super::background::{light, look};
