@@ -342,6 +342,18 @@ impl HiddenPartGrids {
             .map(|g| g.lock().unwrap_or_else(PoisonError::into_inner))
     }
 
+    /// Entry `e` of band `b`'s silhouettes where it is rendered and no
+    /// other reader holds the band now (`None` then: the caller renders
+    /// it), without waiting.
+    fn try_entry(&self, b: usize, e: usize) -> Option<Bits> {
+        let g = match self.grid.get(b)?.try_lock() {
+            Ok(g) => g,
+            Err(std::sync::TryLockError::Poisoned(p)) => p.into_inner(),
+            Err(std::sync::TryLockError::WouldBlock) => return None,
+        };
+        g.get(e).copied()
+    }
+
     /// Whether every band's silhouettes are rendered (a band another
     /// reader is rendering or searching now counts as not ready, without
     /// waiting for it).
@@ -380,6 +392,42 @@ impl SilhouetteCheck {
         self.raster
             .silhouette(&small, &self.shape, &mut self.mask)?;
         Ok(())
+    }
+
+    /// The IoU ([`Mask::iou`]) of the 48×48 silhouette `seen` with the
+    /// nominal silhouette of entry `e` of band `b` (database `db`), at
+    /// `pose`: read from the band's grid where it is rendered there (the same
+    /// render, as bits), else rendered now.
+    fn iou_with_entry(
+        &mut self,
+        b: usize,
+        db: &BandDatabase,
+        (e, pose): (usize, Pose),
+        seen: &Mask,
+    ) -> Result<f64> {
+        let side = (seen.width(), seen.height()) == (SCNN_SIDE, SCNN_SIDE);
+        // a pose the grid could not render is all zeros there: render it
+        // here, for its error
+        if let Some(n) = self
+            .grids
+            .try_entry(b, e)
+            .filter(|n| side && *n != [0; BITS_WORDS])
+        {
+            let s = bits_of(seen);
+            let count = |f: &dyn Fn(usize) -> u64| {
+                (0..BITS_WORDS)
+                    .map(|w| f(w).count_ones() as usize)
+                    .sum::<usize>()
+            };
+            let union = count(&|w| s[w] | n[w]);
+            return Ok(if union == 0 {
+                1.0
+            } else {
+                count(&|w| s[w] & n[w]) as f64 / union as f64
+            });
+        }
+        self.render(db.band.roi, pose)?;
+        Ok(seen.iou(&self.mask)?)
     }
 
     /// Renders the nominal silhouettes of band `b`'s grid (database `db`)
@@ -1193,8 +1241,7 @@ impl Ibjae {
         if let Some(c) = self.check.as_mut() {
             // the nominal silhouette of the pose read, as the database
             // rendered it (build_band_database)
-            c.render(roi, n.pose)?;
-            let iou = segmented.small.iou(&c.mask)?;
+            let iou = c.iou_with_entry(i, db, (n.index, n.pose), &segmented.small)?;
             reading.silhouette_iou = Some(iou);
             if iou < c.min_iou {
                 reading.sigma_deg = reading.sigma_deg.max(UNEXPLAINED_SIGMA_DEG);

@@ -505,6 +505,28 @@ fn the_hidden_parts_silhouettes_can_be_rendered_up_front() {
     assert!(first_need.occluded, "{first_need:?}");
     assert_eq!(up_front, first_need);
     assert!(lazy.hidden_parts_ready());
+    // an untaped frame too: the pose read is scored against its nominal
+    // silhouette from the band's grid where it is rendered, else rendered
+    // there and then; the same score either way
+    let clean = SceneRenderer::new()
+        .render(
+            &camera,
+            &Instrument::kflex().shape(33.0, 10.0).unwrap(),
+            &FrameParams::default(),
+        )
+        .unwrap();
+    let view = RgbView::packed(&clean.rgb, clean.width, clean.height).unwrap();
+    let from_grid = ready.read(&view, &[0]).unwrap().expect("an instrument");
+    let rendered = checked_ibjae(&camera)
+        .read(&view, &[0])
+        .unwrap()
+        .expect("an instrument");
+    assert!(
+        from_grid.silhouette_iou.is_some_and(|iou| iou > 0.5),
+        "{from_grid:?}"
+    );
+    assert_eq!(from_grid, rendered);
+    let view = RgbView::packed(&f.rgb, f.width, f.height).unwrap();
 
     // with two bands, a read renders the band it needs and no other
     let mut scnn = Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
