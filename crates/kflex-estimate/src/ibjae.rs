@@ -288,6 +288,17 @@ fn bits_of(mask: &Mask) -> Bits {
     b
 }
 
+/// [`Mask::iou`] of two 48×48 masks held as bits: 1 where both are empty.
+fn bits_iou(a: &Bits, b: &Bits) -> f64 {
+    let count = |f: &dyn Fn(usize) -> u64| (0..BITS_WORDS).map(|w| f(w).count_ones()).sum::<u32>();
+    let union = count(&|w| a[w] | b[w]);
+    if union == 0 {
+        1.0
+    } else {
+        f64::from(count(&|w| a[w] & b[w])) / f64::from(union)
+    }
+}
+
 /// The nominal 48×48 silhouettes of every band's grid of poses (the
 /// database's order), which the silhouette check's hidden-part search
 /// compares a taped frame with (see "Hidden parts" in the module docs).
@@ -413,18 +424,7 @@ impl SilhouetteCheck {
             .try_entry(b, e)
             .filter(|n| side && *n != [0; BITS_WORDS])
         {
-            let s = bits_of(seen);
-            let count = |f: &dyn Fn(usize) -> u64| {
-                (0..BITS_WORDS)
-                    .map(|w| f(w).count_ones() as usize)
-                    .sum::<usize>()
-            };
-            let union = count(&|w| s[w] | n[w]);
-            return Ok(if union == 0 {
-                1.0
-            } else {
-                count(&|w| s[w] & n[w]) as f64 / union as f64
-            });
+            return Ok(bits_iou(&bits_of(seen), &n));
         }
         self.render(db.band.roi, pose)?;
         Ok(seen.iou(&self.mask)?)
@@ -493,16 +493,7 @@ impl SilhouetteCheck {
             lo = lo.min(pose.theta_deg);
             hi = hi.max(pose.theta_deg);
         }
-        Ok(best.map(|(_, _, e)| {
-            let n = &grid[e];
-            let union = count(&|w| s[w] | n[w]);
-            let iou = if union == 0 {
-                1.0
-            } else {
-                f64::from(count(&|w| s[w] & n[w])) / f64::from(union)
-            };
-            (e, [lo, hi], iou)
-        }))
+        Ok(best.map(|(_, _, e)| (e, [lo, hi], bits_iou(&s, &grid[e]))))
     }
 }
 
