@@ -353,30 +353,31 @@ impl HiddenPartGrids {
             .map(|g| g.lock().unwrap_or_else(PoisonError::into_inner))
     }
 
+    /// [`HiddenPartGrids::band`] where no other reader holds it now
+    /// (`None` then), without waiting.
+    fn try_band(&self, b: usize) -> Option<std::sync::MutexGuard<'_, Vec<Bits>>> {
+        match self.grid.get(b)?.try_lock() {
+            Ok(g) => Some(g),
+            Err(std::sync::TryLockError::Poisoned(p)) => Some(p.into_inner()),
+            Err(std::sync::TryLockError::WouldBlock) => None,
+        }
+    }
+
     /// Entry `e` of band `b`'s silhouettes where it is rendered and no
     /// other reader holds the band now (`None` then: the caller renders
     /// it), without waiting.
     fn try_entry(&self, b: usize, e: usize) -> Option<Bits> {
-        let g = match self.grid.get(b)?.try_lock() {
-            Ok(g) => g,
-            Err(std::sync::TryLockError::Poisoned(p)) => p.into_inner(),
-            Err(std::sync::TryLockError::WouldBlock) => return None,
-        };
-        g.get(e).copied()
+        self.try_band(b)?.get(e).copied()
     }
 
     /// Whether every band's silhouettes are rendered (a band another
     /// reader is rendering or searching now counts as not ready, without
     /// waiting for it).
     fn ready(&self) -> bool {
-        self.bands.iter().zip(self.grid.iter()).all(|(db, g)| {
-            let g = match g.try_lock() {
-                Ok(g) => g,
-                Err(std::sync::TryLockError::Poisoned(p)) => p.into_inner(),
-                Err(std::sync::TryLockError::WouldBlock) => return false,
-            };
-            g.len() >= db.index.len()
-        })
+        self.bands
+            .iter()
+            .enumerate()
+            .all(|(b, db)| self.try_band(b).is_some_and(|g| g.len() >= db.index.len()))
     }
 }
 
