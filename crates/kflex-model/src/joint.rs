@@ -94,6 +94,9 @@ impl Default for JointParams {
 }
 
 impl JointParams {
+    /// The range of `contact_stiffness_nmm_per_rad` (`validate`).
+    pub(crate) const CONTACT_STIFFNESS: Bounds = Bounds::open(0.0, 1e6);
+
     /// Checks the parameters against their physical ranges.
     ///
     /// # Errors
@@ -104,7 +107,7 @@ impl JointParams {
     ///
     /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     pub fn validate(&self) -> Result<()> {
-        Bounds::open(0.0, 1e6).check(
+        Self::CONTACT_STIFFNESS.check(
             "contact_stiffness_nmm_per_rad",
             self.contact_stiffness_nmm_per_rad,
         )?;

@@ -197,17 +197,19 @@ impl PlantConfig {
         // each draw held inside the range `validate` allows (an open end
         // just inside it), so a repeat names no value the user never set
         let s = &mut out.sheath;
-        s.friction_coefficient = s.friction_coefficient.min(1.0);
-        s.pretension_n = s.pretension_n.min(1e3);
-        s.tendon_stiffness_n_per_mm = s.tendon_stiffness_n_per_mm.min(1e6_f64.next_down());
-        s.distal_stiffness_n_per_mm = s.distal_stiffness_n_per_mm.min(1e7_f64.next_down());
-        s.drive_backlash_mm = s.drive_backlash_mm.min(10.0);
-        s.backlash_engagement_mm = s.backlash_engagement_mm.min(10.0);
-        s.presliding_mm = s.presliding_mm.clamp(1e-5, 10.0);
-        s.sheath_path_mm_per_rad = s.sheath_path_mm_per_rad.clamp(-1.0, 1.0);
-        s.route_wrap_deg = s.route_wrap_deg.min(3600.0);
+        s.friction_coefficient = SheathParams::FRICTION_COEFFICIENT.hold(s.friction_coefficient);
+        s.route_wrap_deg = SheathParams::ROUTE_WRAP_DEG.hold(s.route_wrap_deg);
+        s.pretension_n = SheathParams::PRETENSION_N.hold(s.pretension_n);
+        s.tendon_stiffness_n_per_mm =
+            SheathParams::TENDON_STIFFNESS.hold(s.tendon_stiffness_n_per_mm);
+        s.distal_stiffness_n_per_mm =
+            SheathParams::DISTAL_STIFFNESS.hold(s.distal_stiffness_n_per_mm);
+        s.drive_backlash_mm = SheathParams::BACKLASH_MM.hold(s.drive_backlash_mm);
+        s.backlash_engagement_mm = SheathParams::BACKLASH_MM.hold(s.backlash_engagement_mm);
+        s.presliding_mm = SheathParams::PRESLIDING_MM.hold(s.presliding_mm);
+        s.sheath_path_mm_per_rad = SheathParams::PATH_MM_PER_RAD.hold(s.sheath_path_mm_per_rad);
         let k = &mut out.joint.contact_stiffness_nmm_per_rad;
-        *k = k.min(1e6_f64.next_down());
+        *k = JointParams::CONTACT_STIFFNESS.hold(*k);
         // a larger μ or route wrap drawn near the chain's limit would refuse a
         // sheath angle the configuration as given accepts (an error naming a
         // bound the user never set): such a draw of μ is held at the limit,

@@ -116,6 +116,29 @@ impl Bounds {
             })
         }
     }
+
+    /// `value` held inside the range: the nearest end where it lies beyond
+    /// one (just inside an open end), else itself (NaN stays NaN).
+    #[must_use]
+    pub fn hold(&self, value: f64) -> f64 {
+        let lo = if self.min_inclusive {
+            self.min
+        } else {
+            self.min.next_up()
+        };
+        let hi = if self.max_inclusive {
+            self.max
+        } else {
+            self.max.next_down()
+        };
+        if value < lo {
+            lo
+        } else if value > hi {
+            hi
+        } else {
+            value
+        }
+    }
 }
 
 impl fmt::Display for Bounds {
@@ -182,6 +205,19 @@ mod tests {
         assert!(!Bounds::closed_open(0.0, 1.0).contains(1.0));
         assert!(!Bounds::open_closed(0.0, 1.0).contains(0.0));
         assert!(Bounds::open_closed(0.0, 1.0).contains(1.0));
+    }
+
+    #[test]
+    fn a_held_value_lies_in_the_range() {
+        let o = Bounds::open(0.0, 1e6);
+        for v in [-3.0, 0.0, 0.5, 1e6, 2e6] {
+            assert!(o.contains(o.hold(v)), "{v}");
+        }
+        assert_eq!(o.hold(2e6), 1e6_f64.next_down());
+        assert_eq!(o.hold(0.5), 0.5);
+        let c = Bounds::closed(-1.0, 1.0);
+        assert_eq!((c.hold(-1.2), c.hold(1.0), c.hold(0.3)), (-1.0, 1.0, 0.3));
+        assert!(c.hold(f64::NAN).is_nan());
     }
 
     #[test]

@@ -50,6 +50,17 @@ pub struct SheathParams {
 }
 
 impl SheathParams {
+    // the ranges `validate` checks, named so that a draw around a valid
+    // configuration (`PlantConfig::perturbed`) can be held inside them
+    pub(crate) const FRICTION_COEFFICIENT: Bounds = Bounds::closed(0.0, 1.0);
+    pub(crate) const ROUTE_WRAP_DEG: Bounds = Bounds::closed(0.0, 3600.0);
+    pub(crate) const PRETENSION_N: Bounds = Bounds::open_closed(0.0, 1e3);
+    pub(crate) const TENDON_STIFFNESS: Bounds = Bounds::open(0.0, 1e6);
+    pub(crate) const DISTAL_STIFFNESS: Bounds = Bounds::open(0.0, 1e7);
+    pub(crate) const BACKLASH_MM: Bounds = Bounds::closed(0.0, 10.0);
+    pub(crate) const PRESLIDING_MM: Bounds = Bounds::closed(1e-5, 10.0);
+    pub(crate) const PATH_MM_PER_RAD: Bounds = Bounds::closed(-1.0, 1.0);
+
     /// Checks every parameter against its physical range.
     ///
     /// # Errors
@@ -65,18 +76,18 @@ impl SheathParams {
     ///
     /// [`ModelError::OutOfRange`]: crate::ModelError::OutOfRange
     pub fn validate(&self) -> Result<()> {
-        Bounds::closed(0.0, 1.0).check("friction_coefficient", self.friction_coefficient)?;
-        Bounds::closed(0.0, 3600.0).check("route_wrap_deg", self.route_wrap_deg)?;
-        Bounds::open_closed(0.0, 1e3).check("pretension_n", self.pretension_n)?;
-        Bounds::open(0.0, 1e6)
+        Self::FRICTION_COEFFICIENT.check("friction_coefficient", self.friction_coefficient)?;
+        Self::ROUTE_WRAP_DEG.check("route_wrap_deg", self.route_wrap_deg)?;
+        Self::PRETENSION_N.check("pretension_n", self.pretension_n)?;
+        Self::TENDON_STIFFNESS
             .check("tendon_stiffness_n_per_mm", self.tendon_stiffness_n_per_mm)?;
-        Bounds::open(0.0, 1e7)
+        Self::DISTAL_STIFFNESS
             .check("distal_stiffness_n_per_mm", self.distal_stiffness_n_per_mm)?;
-        Bounds::closed(0.0, 10.0).check("drive_backlash_mm", self.drive_backlash_mm)?;
-        Bounds::closed(0.0, 10.0).check("backlash_engagement_mm", self.backlash_engagement_mm)?;
-        Bounds::closed(1e-5, 10.0).check("presliding_mm", self.presliding_mm)?;
+        Self::BACKLASH_MM.check("drive_backlash_mm", self.drive_backlash_mm)?;
+        Self::BACKLASH_MM.check("backlash_engagement_mm", self.backlash_engagement_mm)?;
+        Self::PRESLIDING_MM.check("presliding_mm", self.presliding_mm)?;
         Bounds::closed(1.0, 200.0).check("elements", f64::from(self.elements))?;
-        Bounds::closed(-1.0, 1.0).check("sheath_path_mm_per_rad", self.sheath_path_mm_per_rad)?;
+        Self::PATH_MM_PER_RAD.check("sheath_path_mm_per_rad", self.sheath_path_mm_per_rad)?;
         Bounds::closed(0.0, self.max_wrap_deg()).check("route_wrap_deg", self.route_wrap_deg)?;
         Ok(())
     }
