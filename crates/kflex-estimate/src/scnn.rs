@@ -30,12 +30,55 @@ pub const SCNN_OUTPUT: TensorSpec = TensorSpec {
 
 const PIXELS: usize = (SCNN_SIDE * SCNN_SIDE) as usize;
 
+/// A silhouette's bits, 64 pixels a word.
+type Bits = [u64; PIXELS / 64];
+
+/// How many of the last distinct silhouettes [`Scnn::embed`] remembers.
+const RECENT: usize = 16;
+
+/// The embeddings of the last [`RECENT`] distinct silhouettes embedded one
+/// at a time, by their bits, the oldest replaced first. In a control loop
+/// the camera shows the same silhouette again and again while the joint
+/// rests (the dead zone after each reversal: on the paper's grid about 45 %
+/// of the frames repeat one of the last 16), and the model is a pure
+/// function of its input, so a repeat takes the embedding the model gave.
+#[derive(Debug, Default)]
+struct Recent {
+    keys: Vec<Bits>,
+    embeddings: Vec<[f32; EMBEDDING_DIM]>,
+    /// The slot the next new silhouette replaces once all are taken.
+    oldest: usize,
+}
+
+impl Recent {
+    fn get(&self, key: &Bits) -> Option<&[f32; EMBEDDING_DIM]> {
+        let i = self.keys.iter().position(|k| k == key)?;
+        self.embeddings.get(i)
+    }
+
+    fn insert(&mut self, key: Bits, embedding: &[f32; EMBEDDING_DIM]) {
+        if self.keys.len() < RECENT {
+            self.keys.push(key);
+            self.embeddings.push(*embedding);
+        } else if let (Some(k), Some(e)) = (
+            self.keys.get_mut(self.oldest),
+            self.embeddings.get_mut(self.oldest),
+        ) {
+            *k = key;
+            *e = *embedding;
+            self.oldest = (self.oldest + 1) % RECENT;
+        }
+    }
+}
+
 /// One branch of the Siamese CNN: embeds silhouettes for retrieval.
 #[derive(Debug)]
 pub struct Scnn {
     model: Pooled,
     /// The batch-1 input, reused (no allocation per embedding).
     input: Vec<f32>,
+    recent: Recent,
+    runs: u64,
 }
 
 impl Scnn {
@@ -45,10 +88,12 @@ impl Scnn {
     /// # Errors
     /// As [`OnnxModel::load`].
     pub fn load(path: &Path, threads: usize) -> Result<Self> {
-        Ok(Self {
-            model: Pooled::alone(OnnxModel::load(path, SCNN_INPUT, SCNN_OUTPUT, threads)?),
-            input: vec![0.0; PIXELS],
-        })
+        Ok(Self::new(Pooled::alone(OnnxModel::load(
+            path,
+            SCNN_INPUT,
+            SCNN_OUTPUT,
+            threads,
+        )?)))
     }
 
     /// [`Scnn::load`] through `pool`: a session of the same file and threads
@@ -58,10 +103,33 @@ impl Scnn {
     /// # Errors
     /// As [`OnnxModel::load`].
     pub fn load_pooled(path: &Path, threads: usize, pool: &Arc<ModelPool>) -> Result<Self> {
-        Ok(Self {
-            model: pool.load(path, SCNN_INPUT, SCNN_OUTPUT, threads)?,
+        Ok(Self::new(pool.load(
+            path,
+            SCNN_INPUT,
+            SCNN_OUTPUT,
+            threads,
+        )?))
+    }
+
+    fn new(model: Pooled) -> Self {
+        Self {
+            model,
             input: vec![0.0; PIXELS],
-        })
+            recent: Recent {
+                keys: Vec::with_capacity(RECENT),
+                embeddings: Vec::with_capacity(RECENT),
+                oldest: 0,
+            },
+            runs: 0,
+        }
+    }
+
+    /// How many times this SCNN has run its model: each [`Scnn::embed`]
+    /// whose silhouette was not among the recent ones, each
+    /// [`Scnn::embed_batch`].
+    #[must_use]
+    pub fn model_runs(&self) -> u64 {
+        self.runs
     }
 
     /// The model file's SHA-256 (a feature database records it).
@@ -76,14 +144,25 @@ impl Scnn {
         self.model.threads()
     }
 
-    /// Embeds one 48×48 silhouette into `out`.
+    /// Embeds one 48×48 silhouette into `out`. A silhouette equal to one of
+    /// the last 16 distinct ones embedded this way takes the embedding the
+    /// model gave it, without running the model again (the same values: the
+    /// model is a pure function of its input); no allocation.
     ///
     /// # Errors
     /// [`EstimateError::Length`] for a mask that is not 48×48;
     /// [`EstimateError::Onnx`] when the model fails.
     pub fn embed(&mut self, mask: &Mask, out: &mut [f32; EMBEDDING_DIM]) -> Result<()> {
         fill(mask, &mut self.input)?;
-        self.model.run(&self.input, 1, out)
+        let key = bits(&self.input);
+        if let Some(known) = self.recent.get(&key) {
+            *out = *known;
+            return Ok(());
+        }
+        self.runs += 1;
+        self.model.run(&self.input, 1, out)?;
+        self.recent.insert(key, out);
+        Ok(())
     }
 
     /// Embeds many silhouettes in one model call: `masks.len() × 256` values,
@@ -97,9 +176,22 @@ impl Scnn {
             fill(mask, chunk)?;
         }
         let mut out = vec![0.0f32; masks.len() * EMBEDDING_DIM];
+        self.runs += 1;
         self.model.run(&input, masks.len(), &mut out)?;
         Ok(out)
     }
+}
+
+/// The SCNN's input (1.0 or 0.0 a pixel) as bits.
+fn bits(input: &[f32]) -> Bits {
+    let mut key = [0u64; PIXELS / 64];
+    for (word, pixels) in key.iter_mut().zip(input.chunks_exact(64)) {
+        *word = pixels
+            .iter()
+            .enumerate()
+            .fold(0, |w, (k, &v)| w | (u64::from(v != 0.0) << k));
+    }
+    key
 }
 
 /// A 48×48 mask as the SCNN's input: 1.0 instrument, 0.0 background.

@@ -285,6 +285,50 @@ fn scnn_embeds_silhouettes_as_the_network_does() {
     ));
 }
 
+/// A silhouette seen among the last 16 distinct ones takes the embedding
+/// the network gave it, bit for bit, without running it again; one that
+/// differs by a pixel, or that has been pushed out, runs the network.
+#[test]
+fn a_repeated_silhouette_takes_the_embedding_the_network_gave_it() {
+    use kflex_estimate::{EMBEDDING_DIM, Scnn};
+    let (masks, _) = scnn_expected();
+    let load = || Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
+    let embed = |scnn: &mut Scnn, mask: &kflex_model::Mask| {
+        let mut out = [0.0f32; EMBEDDING_DIM];
+        scnn.embed(mask, &mut out).unwrap();
+        out
+    };
+    let mut scnn = load();
+    let a = embed(&mut scnn, &masks[0]);
+    let b = embed(&mut scnn, &masks[1]);
+    assert_eq!(scnn.model_runs(), 2);
+    assert_eq!(embed(&mut scnn, &masks[0]), a);
+    assert_eq!(embed(&mut scnn, &masks[1]), b);
+    assert_eq!(scnn.model_runs(), 2, "the repeats ran the network");
+    // what a fresh network gives it
+    assert_eq!(embed(&mut load(), &masks[0]), a);
+    // one pixel more is another silhouette
+    let mut bits = masks[0].data().to_vec();
+    let k = bits.iter().position(|&v| v == 0).unwrap();
+    bits[k] = 1;
+    let touched = kflex_model::Mask::from_raw(48, 48, bits).unwrap();
+    let t = embed(&mut scnn, &touched);
+    assert_eq!(scnn.model_runs(), 3);
+    assert_eq!(embed(&mut load(), &touched), t);
+    // 16 other silhouettes push the oldest out: it runs the network again
+    for k in 0..16 {
+        let mut bits = vec![0u8; 48 * 48];
+        bits[k] = 1;
+        embed(
+            &mut scnn,
+            &kflex_model::Mask::from_raw(48, 48, bits).unwrap(),
+        );
+    }
+    assert_eq!(scnn.model_runs(), 19);
+    assert_eq!(embed(&mut scnn, &masks[0]), a);
+    assert_eq!(scnn.model_runs(), 20);
+}
+
 /// Networks made through a pool go back to it when dropped and serve the
 /// next load of the same file, with the same outputs as a fresh load. A
 /// file changed meanwhile (another SHA-256) or other threads are not served
