@@ -13,8 +13,9 @@
 //! `cost`): each figure within 95 % of its tolerance, the loop width beyond
 //! 180 deg within 8 % of its largest, the loop width growing up to 180 deg
 //! (read at the paper's sheath angles: at 90 deg at least 0.2 % wider than
-//! at 0, at 180 than at 90; `KFLEX_FIT_GROWTH_STEP=15` reads it at every 15 deg), and the slope after a reversal rising over at least
-//! 3.3 deg of command. These goals use no paper figure, so the
+//! at 0, at 180 than at 90; `KFLEX_FIT_GROWTH_STEP=15` reads it at every
+//! 15 deg), and the slope after a reversal rising over at least 3.3 deg of
+//! command. These goals use no paper figure, so the
 //! leave-one-out fits keep them too: without the growth goal the straight
 //! sheath's width was predicted 52 % too wide, with it 32 %.
 //!
