@@ -88,7 +88,7 @@ use kflex_model::{Camera, Instrument, InstrumentShape, Mask, Rasterizer, Roi, Wo
 
 use crate::error::{EstimateError, Result};
 use crate::index::{FeatureIndex, IndexParams, Pose};
-use crate::scnn::{EMBEDDING_DIM, SCNN_SIDE, Scnn};
+use crate::scnn::{BITS_WORDS, Bits, EMBEDDING_DIM, SCNN_SIDE, Scnn, bits_of};
 use crate::segment::{SegmentParams, Segmenter};
 
 /// Metadata keys a band database carries.
@@ -270,23 +270,6 @@ pub const HIDDEN_SIGMA_DEG: f64 = 5.0;
 /// segmentation), and the retrieved reading stands, unexplained. Measured
 /// as-built and under tape: at most 33 of 250–700 pixels (about 5 %).
 pub const MAX_UNEXPLAINED_SHARE: f64 = 0.1;
-
-/// 48×48 pixels as bits, row-major.
-type Bits = [u64; BITS_WORDS];
-const BITS_WORDS: usize = (SCNN_SIDE * SCNN_SIDE) as usize / 64;
-const _: () = assert!(
-    (SCNN_SIDE * SCNN_SIDE).is_multiple_of(64),
-    "whole words of bits"
-);
-
-/// A 48×48 mask's pixels as bits.
-fn bits_of(mask: &Mask) -> Bits {
-    let mut b = [0u64; BITS_WORDS];
-    for (i, &v) in mask.data().iter().enumerate().take(64 * BITS_WORDS) {
-        b[i / 64] |= u64::from(v != 0) << (i % 64);
-    }
-    b
-}
 
 /// [`Mask::iou`] of two 48×48 masks held as bits: 1 where both are empty.
 fn bits_iou(a: &Bits, b: &Bits) -> f64 {

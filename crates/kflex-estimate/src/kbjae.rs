@@ -170,7 +170,9 @@ impl Kbjae {
         Ok((angle, history))
     }
 
-    /// Moves the commands' history to `history` ([`Kbjae::answer`]'s).
+    /// Moves the commands' history to `history` ([`Kbjae::answer`]'s; LBHJAE
+    /// keeps it, which needs the `index` feature).
+    #[cfg_attr(not(feature = "index"), allow(dead_code))]
     pub(crate) fn keep(&mut self, history: CommandRate) {
         self.rate = history;
     }

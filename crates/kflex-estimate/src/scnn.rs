@@ -30,19 +30,31 @@ pub const SCNN_OUTPUT: TensorSpec = TensorSpec {
 
 const PIXELS: usize = (SCNN_SIDE * SCNN_SIDE) as usize;
 
-/// A silhouette's bits, 64 pixels a word.
-type Bits = [u64; PIXELS / 64];
+/// A 48×48 silhouette's pixels as bits, row-major, 64 a word.
+pub(crate) type Bits = [u64; BITS_WORDS];
+pub(crate) const BITS_WORDS: usize = PIXELS / 64;
+const _: () = assert!(PIXELS.is_multiple_of(64), "whole words of bits");
 
-/// How many of the last distinct silhouettes [`Scnn::embed`] remembers.
+/// A 48×48 mask's pixels as bits (a larger mask's first 48×48).
+pub(crate) fn bits_of(mask: &Mask) -> Bits {
+    let mut b = [0u64; BITS_WORDS];
+    for (i, &v) in mask.data().iter().enumerate().take(64 * BITS_WORDS) {
+        b[i / 64] |= u64::from(v != 0) << (i % 64);
+    }
+    b
+}
+
+/// How many silhouettes [`Scnn::embed`] remembers.
 const RECENT: usize = 16;
 
-/// The embeddings of the last [`RECENT`] distinct silhouettes embedded one
-/// at a time, by their bits, the oldest replaced first. In a control loop
-/// the camera shows the same silhouette again and again while the joint
-/// rests (the dead zone after each reversal: on the paper's grid about 45 %
-/// of the frames repeat one of the last 16), and the model is a pure
-/// function of its input, so a repeat takes the embedding the model gave.
-#[derive(Debug, Default)]
+/// The embeddings of the last [`RECENT`] silhouettes that [`Scnn::embed`]
+/// ran the model for, by their bits, the oldest replaced first. In a
+/// control loop the camera shows the same silhouette again and again while
+/// the joint rests (the dead zone after each reversal: on `kflex-cli run
+/// --quick` with the trial models, 3,232 of 6,500 embeddings repeat one of
+/// them), and the model is a pure function of its input, so a repeat takes
+/// the embedding the model gave.
+#[derive(Debug)]
 struct Recent {
     keys: Vec<Bits>,
     embeddings: Vec<[f32; EMBEDDING_DIM]>,
@@ -145,16 +157,16 @@ impl Scnn {
     }
 
     /// Embeds one 48×48 silhouette into `out`. A silhouette equal to one of
-    /// the last 16 distinct ones embedded this way takes the embedding the
-    /// model gave it, without running the model again (the same values: the
-    /// model is a pure function of its input); no allocation.
+    /// the last 16 this ran the model for takes the embedding the model gave
+    /// it, without running the model again (the same values: the model is a
+    /// pure function of its input); no allocation.
     ///
     /// # Errors
     /// [`EstimateError::Length`] for a mask that is not 48×48;
     /// [`EstimateError::Onnx`] when the model fails.
     pub fn embed(&mut self, mask: &Mask, out: &mut [f32; EMBEDDING_DIM]) -> Result<()> {
         fill(mask, &mut self.input)?;
-        let key = bits(&self.input);
+        let key = bits_of(mask);
         if let Some(known) = self.recent.get(&key) {
             *out = *known;
             return Ok(());
@@ -180,18 +192,6 @@ impl Scnn {
         self.model.run(&input, masks.len(), &mut out)?;
         Ok(out)
     }
-}
-
-/// The SCNN's input (1.0 or 0.0 a pixel) as bits.
-fn bits(input: &[f32]) -> Bits {
-    let mut key = [0u64; PIXELS / 64];
-    for (word, pixels) in key.iter_mut().zip(input.chunks_exact(64)) {
-        *word = pixels
-            .iter()
-            .enumerate()
-            .fold(0, |w, (k, &v)| w | (u64::from(v != 0.0) << k));
-    }
-    key
 }
 
 /// A 48×48 mask as the SCNN's input: 1.0 instrument, 0.0 background.

@@ -285,9 +285,10 @@ fn scnn_embeds_silhouettes_as_the_network_does() {
     ));
 }
 
-/// A silhouette seen among the last 16 distinct ones takes the embedding
-/// the network gave it, bit for bit, without running it again; one that
-/// differs by a pixel, or that has been pushed out, runs the network.
+/// A silhouette among the last 16 the network ran for takes the embedding
+/// it gave, bit for bit, without running it again; one that differs by a
+/// pixel (in the first word of its bits or the last), or that 16 newer ones
+/// have pushed out, runs the network.
 #[test]
 fn a_repeated_silhouette_takes_the_embedding_the_network_gave_it() {
     use kflex_estimate::{EMBEDDING_DIM, Scnn};
@@ -307,26 +308,44 @@ fn a_repeated_silhouette_takes_the_embedding_the_network_gave_it() {
     assert_eq!(scnn.model_runs(), 2, "the repeats ran the network");
     // what a fresh network gives it
     assert_eq!(embed(&mut load(), &masks[0]), a);
-    // one pixel more is another silhouette
-    let mut bits = masks[0].data().to_vec();
-    let k = bits.iter().position(|&v| v == 0).unwrap();
-    bits[k] = 1;
-    let touched = kflex_model::Mask::from_raw(48, 48, bits).unwrap();
-    let t = embed(&mut scnn, &touched);
-    assert_eq!(scnn.model_runs(), 3);
-    assert_eq!(embed(&mut load(), &touched), t);
-    // 16 other silhouettes push the oldest out: it runs the network again
-    for k in 0..16 {
-        let mut bits = vec![0u8; 48 * 48];
+    // one pixel more, at the first free pixel and at the last, is another
+    // silhouette
+    for last in [false, true] {
+        let mut bits = masks[0].data().to_vec();
+        let free = |v: &u8| *v == 0;
+        let k = if last {
+            bits.iter().rposition(free)
+        } else {
+            bits.iter().position(free)
+        }
+        .unwrap();
         bits[k] = 1;
-        embed(
-            &mut scnn,
-            &kflex_model::Mask::from_raw(48, 48, bits).unwrap(),
-        );
+        let touched = kflex_model::Mask::from_raw(48, 48, bits).unwrap();
+        let runs = scnn.model_runs();
+        let t = embed(&mut scnn, &touched);
+        assert_eq!(scnn.model_runs(), runs + 1, "pixel {k}");
+        assert_eq!(embed(&mut load(), &touched), t);
     }
-    assert_eq!(scnn.model_runs(), 19);
+    // 16 remembered (a, b and the two touched ones, then 12 more): `a`, the
+    // oldest, still among them; one more pushes it out
+    let other = |k: usize| {
+        let mut bits = vec![0u8; 48 * 48];
+        bits[48 * 47 + k] = 1;
+        kflex_model::Mask::from_raw(48, 48, bits).unwrap()
+    };
+    for k in 0..12 {
+        embed(&mut scnn, &other(k));
+    }
+    assert_eq!(scnn.model_runs(), 16);
     assert_eq!(embed(&mut scnn, &masks[0]), a);
-    assert_eq!(scnn.model_runs(), 20);
+    assert_eq!(scnn.model_runs(), 16, "the oldest of 16 was forgotten");
+    embed(&mut scnn, &other(12));
+    assert_eq!(embed(&mut scnn, &masks[0]), a);
+    assert_eq!(
+        scnn.model_runs(),
+        18,
+        "the 17th did not push the oldest out"
+    );
 }
 
 /// Networks made through a pool go back to it when dropped and serve the
