@@ -56,28 +56,22 @@ const RECENT: usize = 16;
 /// the embedding the model gave.
 #[derive(Debug)]
 struct Recent {
-    keys: Vec<Bits>,
-    embeddings: Vec<[f32; EMBEDDING_DIM]>,
-    /// The slot the next new silhouette replaces once all are taken.
+    /// Each silhouette's bits and the model's embedding of it.
+    entries: Vec<(Bits, [f32; EMBEDDING_DIM])>,
+    /// The entry the next new silhouette replaces once all are taken.
     oldest: usize,
 }
 
 impl Recent {
     fn get(&self, key: &Bits) -> Option<&[f32; EMBEDDING_DIM]> {
-        let i = self.keys.iter().position(|k| k == key)?;
-        self.embeddings.get(i)
+        self.entries.iter().find(|(k, _)| k == key).map(|(_, e)| e)
     }
 
     fn insert(&mut self, key: Bits, embedding: &[f32; EMBEDDING_DIM]) {
-        if self.keys.len() < RECENT {
-            self.keys.push(key);
-            self.embeddings.push(*embedding);
-        } else if let (Some(k), Some(e)) = (
-            self.keys.get_mut(self.oldest),
-            self.embeddings.get_mut(self.oldest),
-        ) {
-            *k = key;
-            *e = *embedding;
+        if self.entries.len() < RECENT {
+            self.entries.push((key, *embedding));
+        } else if let Some(entry) = self.entries.get_mut(self.oldest) {
+            *entry = (key, *embedding);
             self.oldest = (self.oldest + 1) % RECENT;
         }
     }
@@ -128,8 +122,7 @@ impl Scnn {
             model,
             input: vec![0.0; PIXELS],
             recent: Recent {
-                keys: Vec::with_capacity(RECENT),
-                embeddings: Vec::with_capacity(RECENT),
+                entries: Vec::with_capacity(RECENT),
                 oldest: 0,
             },
             runs: 0,
