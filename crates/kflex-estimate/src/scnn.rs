@@ -158,12 +158,13 @@ impl Scnn {
     /// [`EstimateError::Length`] for a mask that is not 48×48;
     /// [`EstimateError::Onnx`] when the model fails.
     pub fn embed(&mut self, mask: &Mask, out: &mut [f32; EMBEDDING_DIM]) -> Result<()> {
-        fill(mask, &mut self.input)?;
+        check_side(mask)?;
         let key = bits_of(mask);
         if let Some(known) = self.recent.get(&key) {
             *out = *known;
             return Ok(());
         }
+        fill(mask, &mut self.input)?;
         self.runs += 1;
         self.model.run(&self.input, 1, out)?;
         self.recent.insert(key, out);
@@ -187,8 +188,8 @@ impl Scnn {
     }
 }
 
-/// A 48×48 mask as the SCNN's input: 1.0 instrument, 0.0 background.
-fn fill(mask: &Mask, out: &mut [f32]) -> Result<()> {
+/// [`EstimateError::Length`] for a mask that is not 48×48.
+fn check_side(mask: &Mask) -> Result<()> {
     if mask.width() != SCNN_SIDE || mask.height() != SCNN_SIDE {
         return Err(EstimateError::Length {
             what: "SCNN silhouette pixels (48×48)",
@@ -196,6 +197,12 @@ fn fill(mask: &Mask, out: &mut [f32]) -> Result<()> {
             got: (mask.width() * mask.height()) as usize,
         });
     }
+    Ok(())
+}
+
+/// A 48×48 mask as the SCNN's input: 1.0 instrument, 0.0 background.
+fn fill(mask: &Mask, out: &mut [f32]) -> Result<()> {
+    check_side(mask)?;
     for (o, &v) in out.iter_mut().zip(mask.data()) {
         *o = if v != 0 { 1.0 } else { 0.0 };
     }
