@@ -285,6 +285,15 @@ fn cost_sheaths() -> Vec<f64> {
     all
 }
 
+/// Row `r`'s RMSE and loop width against the paper's at sheath `SHEATHS[i]`:
+/// relative errors in units of their tolerances.
+fn in_tolerances(r: &GridRow, i: usize) -> [f64; 2] {
+    [
+        (r.rmse_deg.mean - RMSE[i]) / (RMSE[i] * RMSE_TOL[i]),
+        (r.max_hysteresis_deg.mean - WIDTH[i]) / (WIDTH[i] * WIDTH_TOL[i]),
+    ]
+}
+
 /// Cost over the sheath angles `which` (indices into `SHEATHS`): the sum of
 /// squared relative errors in units of their tolerances, plus penalties
 /// where a figure leaves 95 % of its tolerance or the loop misses a shape
@@ -313,10 +322,7 @@ fn cost(x: &[f64], which: &[usize]) -> f64 {
         let Some(r) = row(SHEATHS[i]) else {
             return f64::INFINITY;
         };
-        for q in [
-            (r.rmse_deg.mean - RMSE[i]) / (RMSE[i] * RMSE_TOL[i]),
-            (r.max_hysteresis_deg.mean - WIDTH[i]) / (WIDTH[i] * WIDTH_TOL[i]),
-        ] {
+        for q in in_tolerances(r, i) {
             c += q * q + PENALTY * (q.abs() - 0.95).max(0.0).powi(2);
         }
     }
@@ -442,11 +448,10 @@ fn protocol_cost(plant: PlantConfig, which: &[usize]) -> f64 {
     };
     let mut c = 0.0;
     for &i in which {
-        let r = &rows[i];
-        for q in [
-            (r.rmse_deg.mean - RMSE[i]) / (RMSE[i] * RMSE_TOL[i]),
-            (r.max_hysteresis_deg.mean - WIDTH[i]) / (WIDTH[i] * WIDTH_TOL[i]),
-        ] {
+        let Some(r) = rows.get(i) else {
+            return f64::INFINITY;
+        };
+        for q in in_tolerances(r, i) {
             c += PENALTY * (100.0 * (q.abs() - 0.9).max(0.0)).powi(2);
         }
     }
