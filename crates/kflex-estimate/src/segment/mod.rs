@@ -251,7 +251,12 @@ pub fn segment(
 ///    whose chromaticities differ by less than [`SegmentParams::merge_chroma`],
 ///    each widened by what the frame's own noise explains for regions of
 ///    their sizes ([`SegmentParams::merge_noise_z`]), become one region
-///    (union–find over the leaves' adjacency, on the regions' running means). No leaf is smaller than
+///    (union–find over the leaves' adjacency, on the regions' running means).
+///    The pairs are merged in two passes: first only where the noise alone
+///    explains the difference, so that the frame's even parts form and
+///    their means settle, then with the thresholds too (in one pass a
+///    region's mean walked along a slow change, a blurred edge or tissue as
+///    grey as the steel, before the regions beside it had formed). No leaf is smaller than
 ///    a 2×2 cell, so merging and thresholding work on the grid of cells, a
 ///    quarter of the pixels.
 /// 4. **Threshold**, from the frame's own statistics: each merged region's
@@ -337,7 +342,8 @@ struct Scratch {
     roots: Vec<u32>,
     /// Per leaf: its cells' box `[x0, y0, x1, y1]`, inclusive.
     leaf_box: Vec<[u32; 4]>,
-    /// Leaf pairs across cell edges, `[a, b, edges]`, recorded by the merge.
+    /// Leaf pairs across cell edges, `[a, b, edges]`, recorded by the merge
+    /// (one record a pair).
     leaf_edges: Vec<[u32; 3]>,
     /// Per cell column: the last leaf pair recorded across its right edge
     /// and where (`leaf_edges` index), to count a vertical boundary's run.

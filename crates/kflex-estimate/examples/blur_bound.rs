@@ -1,0 +1,102 @@
+//! An upper bound for any segmentation that decides each pixel by its own
+//! colour under optical blur (issue 9's "blur ≤ 3 px" goal): the renderer's
+//! exact instrument mask blurred by the same Gaussian and cut at half, the
+//! best a threshold half way between the two colours can do on a step edge
+//! (it knows both colours exactly and sees no noise). Scored as the
+//! robustness matrix scores a segmentation, in the same regions.
+//!
+//! `cargo run --release -p kflex-estimate --example blur_bound`
+
+#[path = "../tests/matrix/mod.rs"]
+mod matrix;
+
+use kflex_model::{Background, Mask};
+use matrix::{Bench, Case, Condition, DS_MM, GOAL_DISTAL, GOAL_ROI, MIN_DISTAL_PX, THETAS_DEG};
+
+/// `mask` (0/1) blurred by a Gaussian of `sigma` px and cut at one half.
+fn blurred_cut(mask: &Mask, sigma: f64) -> Mask {
+    let (w, h) = (mask.width() as usize, mask.height() as usize);
+    let r = (3.0 * sigma).ceil() as isize;
+    let kernel: Vec<f64> = (-r..=r)
+        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let norm: f64 = kernel.iter().sum();
+    let src: Vec<f64> = mask.data().iter().map(|&v| f64::from(v)).collect();
+    let mut tmp = vec![0.0; w * h];
+    let mut out = vec![0.0; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            tmp[y * w + x] = kernel
+                .iter()
+                .enumerate()
+                .map(|(j, k)| {
+                    let sx = (x as isize + j as isize - r).clamp(0, w as isize - 1) as usize;
+                    k * src[y * w + sx]
+                })
+                .sum::<f64>()
+                / norm;
+        }
+    }
+    for y in 0..h {
+        for x in 0..w {
+            out[y * w + x] = kernel
+                .iter()
+                .enumerate()
+                .map(|(j, k)| {
+                    let sy = (y as isize + j as isize - r).clamp(0, h as isize - 1) as usize;
+                    k * tmp[sy * w + x]
+                })
+                .sum::<f64>()
+                / norm;
+        }
+    }
+    let bits = out.iter().map(|&v| u8::from(v >= 0.5)).collect();
+    Mask::from_raw(mask.width(), mask.height(), bits).expect("same size")
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let mut bench = Bench::default();
+    println!(
+        "| blur σ (px) | d (mm) | ROI IoU min | ROI IoU median | distal IoU min | distal IoU median | under a goal (of 5) |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for sigma in [1.5, 3.0, 6.0] {
+        for d_mm in DS_MM {
+            let (mut rois, mut distals, mut under) = (Vec::new(), Vec::new(), 0);
+            for theta_deg in THETAS_DEG {
+                // the geometry alone: one background serves
+                let case = Case {
+                    background: Background::Colon,
+                    theta_deg,
+                    d_mm,
+                };
+                let (frame, distal) = bench.frame(case, Condition::Baseline);
+                let roi = bench.roi_of(case);
+                let found = blurred_cut(&frame.instrument, sigma).crop(roi)?;
+                let truth = frame.instrument.crop(roi)?;
+                let distal = distal.crop(roi)?;
+                let iou = found.iou(&truth)?;
+                let (mut inter, mut union) = (0usize, 0usize);
+                for ((&s, &t), &dd) in found.data().iter().zip(truth.data()).zip(distal.data()) {
+                    if t != 0 && dd == 0 {
+                        continue;
+                    }
+                    inter += usize::from(s != 0 && dd != 0);
+                    union += usize::from(s != 0 || dd != 0);
+                }
+                let d = (distal.count() >= MIN_DISTAL_PX).then(|| inter as f64 / union as f64);
+                if iou < GOAL_ROI || d.is_some_and(|d| d < GOAL_DISTAL) {
+                    under += 1;
+                }
+                rois.push(iou);
+                distals.extend(d);
+            }
+            let (rmin, rmed) = matrix::min_median(&mut rois).unwrap_or((f64::NAN, f64::NAN));
+            let (dmin, dmed) = matrix::min_median(&mut distals).unwrap_or((f64::NAN, f64::NAN));
+            println!(
+                "| {sigma} | {d_mm} | {rmin:.3} | {rmed:.3} | {dmin:.3} | {dmed:.3} | {under} |"
+            );
+        }
+    }
+    Ok(())
+}
