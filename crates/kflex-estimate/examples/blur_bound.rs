@@ -22,34 +22,26 @@ fn blurred_cut(mask: &Mask, sigma: f64) -> Mask {
         .collect();
     let norm: f64 = kernel.iter().sum();
     let src: Vec<f64> = mask.data().iter().map(|&v| f64::from(v)).collect();
-    let mut tmp = vec![0.0; w * h];
-    let mut out = vec![0.0; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            tmp[y * w + x] = kernel
-                .iter()
-                .enumerate()
-                .map(|(j, k)| {
-                    let sx = (x as isize + j as isize - r).clamp(0, w as isize - 1) as usize;
-                    k * src[y * w + sx]
-                })
-                .sum::<f64>()
-                / norm;
-        }
-    }
-    for y in 0..h {
-        for x in 0..w {
-            out[y * w + x] = kernel
-                .iter()
-                .enumerate()
-                .map(|(j, k)| {
-                    let sy = (y as isize + j as isize - r).clamp(0, h as isize - 1) as usize;
-                    k * tmp[sy * w + x]
-                })
-                .sum::<f64>()
-                / norm;
-        }
-    }
+    // one pass of the separable kernel, along rows (`step` 1, `len` w) or
+    // columns (`step` w, `len` h), the edge pixel repeated past the ends
+    let pass = |src: &[f64], step: usize, len: usize| -> Vec<f64> {
+        (0..w * h)
+            .map(|i| {
+                let at = (i / step) % len; // position along the pass
+                let base = i - at * step;
+                kernel
+                    .iter()
+                    .enumerate()
+                    .map(|(j, k)| {
+                        let s = (at as isize + j as isize - r).clamp(0, len as isize - 1);
+                        k * src[base + s as usize * step]
+                    })
+                    .sum::<f64>()
+                    / norm
+            })
+            .collect()
+    };
+    let out = pass(&pass(&src, 1, w), w, h);
     let bits = out.iter().map(|&v| u8::from(v >= 0.5)).collect();
     Mask::from_raw(mask.width(), mask.height(), bits).expect("same size")
 }
