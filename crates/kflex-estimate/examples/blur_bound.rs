@@ -1,8 +1,8 @@
-//! An upper bound for any segmentation that decides each pixel by its own
-//! colour under optical blur (issue 9's "blur ≤ 3 px" goal): the renderer's
-//! exact instrument mask blurred by the same Gaussian and cut at half, the
-//! best a threshold half way between the two colours can do on a step edge
-//! (it knows both colours exactly and sees no noise). Scored as the
+//! What a threshold half way between the two colours reaches under optical
+//! blur (issue 9's "blur ≤ 3 px" goal), were it to know both colours exactly
+//! and see no noise: the renderer's exact instrument mask blurred by the
+//! same Gaussian and cut at one half. (Not a bound on every segmentation: a
+//! cut elsewhere could keep thin jaws whose peak falls under one half.) Scored as the
 //! robustness matrix scores a segmentation, in the same regions.
 //!
 //! `cargo run --release -p kflex-estimate --example blur_bound`

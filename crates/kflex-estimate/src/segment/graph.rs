@@ -192,7 +192,10 @@ mod tests {
     #[test]
     fn the_graph_holds_every_shared_cell_edge_of_the_grid() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
-        for (cols, rows, block) in [(17usize, 11usize, 1usize), (23, 9, 3), (40, 30, 4)] {
+        // without noise the merge's first pass joins nothing; with it, the
+        // first pass joins the pairs of equal colour (and flags their records)
+        let grids = [(17usize, 11usize, 1usize), (23, 9, 3), (40, 30, 4)];
+        for ((cols, rows, block), noise) in grids.iter().flat_map(|&g| [(g, 0.0), (g, 0.05)]) {
             // leaves: blocks of `block` cells, each a colour of a few
             let (bc, br) = (cols.div_ceil(block), rows.div_ceil(block));
             let mut s = Scratch {
@@ -214,7 +217,7 @@ mod tests {
                     .collect(),
                 ..Scratch::default()
             };
-            merge(&mut s, cols, rows, &SegmentParams::default(), 0.0);
+            merge(&mut s, cols, rows, &SegmentParams::default(), noise);
             build(&mut s, cols, rows);
             let n = s.regions.len();
             let root = |x: usize, y: usize| s.parent[s.labels[y * cols + x] as usize] as usize;
@@ -240,7 +243,10 @@ mod tests {
                     got[r * n + o as usize] += e;
                 }
             }
-            assert_eq!(got, brute, "{cols}×{rows}, blocks of {block}");
+            assert_eq!(
+                got, brute,
+                "{cols}×{rows}, blocks of {block}, noise {noise}"
+            );
             assert!(got.iter().any(|&e| e > 0), "some regions stay apart");
             let roots: Vec<usize> = (0..n).filter(|&r| s.parent[r] as usize == r).collect();
             assert!(roots.len() < n, "some leaves merge");

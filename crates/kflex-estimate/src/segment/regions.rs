@@ -125,22 +125,27 @@ pub(super) fn split(s: &mut Scratch, depth: usize, rw: usize, rh: usize, p: Segm
 const JOINED: u32 = 1 << 31;
 
 /// Merges adjacent regions (4-neighbouring cells with different labels) whose
-/// mean colours are closer than `distance`: union–find on running means.
-/// Leaves each region's merged root in `s.parent`, and in `s.leaf_edges`
-/// every pair of leaves across cell edges with the number of those edges.
+/// mean colours are close (the colour distance and the chromaticity's, each
+/// within its threshold plus what the noise `noise` explains for regions of
+/// their sizes): union–find on running means. Leaves each region's merged
+/// root in `s.parent`, and in `s.leaf_edges` every pair of leaves across
+/// cell edges with the number of those edges.
 ///
-/// Two passes. The first, as the cells are walked and each pair is met,
-/// joins only the pairs whose difference the frame's noise alone explains
-/// (the fixed thresholds `merge_distance` and `merge_chroma` left out), so
-/// that the frame's even parts form first and their means settle; the
-/// second, over the pairs recorded, allows the thresholds too. In one pass,
-/// in the order a raster scan meets the pairs, a region's running mean could
-/// walk along a slow change (an edge blurred by the optics, tissue nearly as
-/// grey as the steel) before the regions on either side of it had formed:
-/// over the robustness matrix's six backgrounds per organ, 118 cases under a
-/// goal with one pass, 99 with two (29 fewer, 10 more; grey tissue 23 → 19,
-/// white 26 → 21, noise σ 0.1 16 → 12, gain 1.6 8 → 5), at 7–9 % more
-/// time for the segmentation.
+/// Two passes, each trying every pair once. The first, as the cells are
+/// walked and each pair is met, joins only the pairs whose difference the
+/// frame's noise alone explains (the fixed thresholds `merge_distance` and
+/// `merge_chroma` left out), so that the frame's even parts form first and
+/// their means settle; the second, over the pairs recorded, allows the
+/// thresholds too. (Where `noise` is 0 the first pass joins nothing and the
+/// second does all.) In one pass, in the order a raster scan meets the
+/// pairs (a pair along a vertical boundary tried again on every row), a
+/// region's running mean could walk along a slow change (an edge blurred by
+/// the optics, tissue nearly as grey as the steel) before the regions on
+/// either side of it had formed: over the robustness matrix's six
+/// backgrounds per organ, 118 cases under a goal with one pass, 99 with two
+/// (29 fixed, 10 newly under; grey tissue 23 → 19, white 26 → 21, noise
+/// σ 0.1 16 → 12, gain 1.6 8 → 5), at 7–10 % more time for the
+/// segmentation.
 pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, p: &SegmentParams, noise: f32) {
     fn find(parent: &mut [u32], mut i: u32) -> u32 {
         while parent[i as usize] != i {
