@@ -232,8 +232,7 @@ fn record_pairs(
         let row = &labels[y * cols..(y + 1) * cols];
         let below = labels.get((y + 1) * cols..(y + 2) * cols);
         let mut last_down = (u32::MAX, u32::MAX, 0);
-        let mut x = 0;
-        while x < cols {
+        for x in 0..cols {
             let a = row[x];
             if x + 1 < cols && row[x + 1] != a {
                 let b = row[x + 1];
@@ -256,7 +255,6 @@ fn record_pairs(
                     }
                 }
             }
-            x += 1;
         }
     }
 }
