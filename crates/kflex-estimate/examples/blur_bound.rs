@@ -11,7 +11,7 @@
 mod matrix;
 
 use kflex_model::{Background, Mask};
-use matrix::{Bench, Case, Condition, DS_MM, GOAL_DISTAL, GOAL_ROI, MIN_DISTAL_PX, THETAS_DEG};
+use matrix::{Bench, Case, Condition, DS_MM, GOAL_DISTAL, GOAL_ROI, Score, THETAS_DEG};
 
 /// `mask` (0/1) blurred by a Gaussian of `sigma` px and cut at one half.
 fn blurred_cut(mask: &Mask, sigma: f64) -> Mask {
@@ -67,21 +67,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let found = blurred_cut(&frame.instrument, sigma).crop(roi)?;
                 let truth = frame.instrument.crop(roi)?;
                 let distal = distal.crop(roi)?;
-                let iou = found.iou(&truth)?;
-                let (mut inter, mut union) = (0usize, 0usize);
-                for ((&s, &t), &dd) in found.data().iter().zip(truth.data()).zip(distal.data()) {
-                    if t != 0 && dd == 0 {
-                        continue;
-                    }
-                    inter += usize::from(s != 0 && dd != 0);
-                    union += usize::from(s != 0 || dd != 0);
-                }
-                let d = (distal.count() >= MIN_DISTAL_PX).then(|| inter as f64 / union as f64);
-                if iou < GOAL_ROI || d.is_some_and(|d| d < GOAL_DISTAL) {
+                let score = Score::of(&found, &truth, &distal);
+                if !score.meets(GOAL_ROI, GOAL_DISTAL) {
                     under += 1;
                 }
-                rois.push(iou);
-                distals.extend(d);
+                rois.push(score.roi);
+                distals.extend(score.distal);
             }
             let (rmin, rmed) = matrix::min_median(&mut rois).unwrap_or((f64::NAN, f64::NAN));
             let (dmin, dmed) = matrix::min_median(&mut distals).unwrap_or((f64::NAN, f64::NAN));

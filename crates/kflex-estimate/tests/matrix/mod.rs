@@ -128,6 +128,24 @@ pub struct Score {
 }
 
 impl Score {
+    /// The score of mask `found` against the visible instrument `truth` and
+    /// its bend and gripper `distal`, all three of one region.
+    pub fn of(found: &Mask, truth: &Mask, distal: &Mask) -> Score {
+        let roi = found.iou(truth).expect("same size");
+        // leave the shaft's own pixels out of both masks
+        let (mut inter, mut union) = (0usize, 0usize);
+        for ((&s, &t), &d) in found.data().iter().zip(truth.data()).zip(distal.data()) {
+            let shaft = t != 0 && d == 0;
+            if shaft {
+                continue;
+            }
+            inter += usize::from(s != 0 && d != 0);
+            union += usize::from(s != 0 || d != 0);
+        }
+        let distal = (distal.count() >= MIN_DISTAL_PX).then(|| inter as f64 / union as f64);
+        Score { roi, distal }
+    }
+
     /// Whether the case reaches `roi_min` in the region and, where scored,
     /// `distal_min` on the bend and gripper.
     #[allow(dead_code)] // not every user of the module reads it
@@ -270,19 +288,7 @@ impl Bench {
         let seg = segmenter.segment(&frame.rgb, frame.width, frame.height, roi)?;
         let truth = frame.instrument.crop(roi).expect("crop");
         let distal = distal.crop(roi).expect("crop");
-        let iou = seg.full.iou(&truth).expect("same size");
-        // leave the shaft's own pixels out of both masks
-        let (mut inter, mut union) = (0usize, 0usize);
-        for ((&s, &t), &d) in seg.full.data().iter().zip(truth.data()).zip(distal.data()) {
-            let shaft = t != 0 && d == 0;
-            if shaft {
-                continue;
-            }
-            inter += usize::from(s != 0 && d != 0);
-            union += usize::from(s != 0 || d != 0);
-        }
-        let distal = (distal.count() >= MIN_DISTAL_PX).then(|| inter as f64 / union as f64);
-        Ok(Score { roi: iou, distal })
+        Ok(Score::of(&seg.full, &truth, &distal))
     }
 
     /// A frame of `background` without the instrument, its tissue coloured
