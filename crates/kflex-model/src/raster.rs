@@ -34,7 +34,13 @@ pub struct Rasterizer {
     scene: Scene,
     optics: Optics,
     coarse: Vec<u16>,
-    fine: Vec<u16>,
+    /// The last walk of [`Rasterizer::tiles`]: each fine tile that has
+    /// candidates, its corner and its candidates' range in `walked_bodies`,
+    /// in the walk's order; good for the prepared shape, seen by the camera
+    /// and over the window of `walked_over`.
+    walked: Vec<([u32; 2], std::ops::Range<usize>)>,
+    walked_bodies: Vec<u16>,
+    walked_over: Option<(Camera, Roi)>,
 }
 
 /// What depends on the camera only, kept while it stays: each pixel's unit
@@ -101,6 +107,15 @@ impl Optics {
         let w = &self.window;
         let r = self.rays[((y - w.y0) * w.width + (x - w.x0)) as usize];
         Vector3::new(f64::from(r[0]), f64::from(r[1]), f64::from(r[2]))
+    }
+
+    /// The unit rays (in `f32`) through the centres of the pixels `x0..x1`
+    /// of row `y`, which the window held covers.
+    #[inline]
+    fn row(&self, x0: u32, x1: u32, y: u32) -> &[[f32; 3]] {
+        let w = &self.window;
+        let start = ((y - w.y0) * w.width + (x0 - w.x0)) as usize;
+        &self.rays[start..start + (x1 - x0) as usize]
     }
 
     /// The cone of the tile of side `side` at `(tx, ty)` (tile coordinates).
@@ -229,6 +244,7 @@ impl Rasterizer {
 
     /// Puts `shape`'s bodies into `camera`'s frame.
     pub(crate) fn prepare(&mut self, camera: &Camera, shape: &InstrumentShape) {
+        self.walked_over = None;
         self.scene.bodies.clear();
         self.scene.bodies.extend(shape.bodies.iter().map(|b| {
             let to = |p: [f64; 3]| (camera.camera_from_overtube * Point3::from(p)).coords;
@@ -248,7 +264,9 @@ impl Rasterizer {
     /// Calls `f` for every fine tile of `window` (pixel box `[x0, y0, x1,
     /// y1)` in the full image's coordinates) that some body may cover, with
     /// the indices of those bodies. Tiles are aligned to the full image, so
-    /// the culling does not depend on the window.
+    /// the culling does not depend on the window: a window inside the last
+    /// one walked for the same shape and camera (a frame's shading after its
+    /// centre rays) takes that walk's tiles, clipped to it, in their order.
     pub(crate) fn tiles(
         &mut self,
         camera: &Camera,
@@ -256,6 +274,34 @@ impl Rasterizer {
         mut f: impl FnMut(&Scene, &Optics, [u32; 4], &[u16]),
     ) {
         self.optics.cover(camera, window);
+        if !self
+            .walked_over
+            .is_some_and(|(c, over)| c == *camera && over.holds(&window))
+        {
+            self.walk(camera, window);
+        }
+        let (wx0, wy0) = (window.x0, window.y0);
+        let (wx1, wy1) = (wx0 + window.width, wy0 + window.height);
+        for ([fx, fy], bodies) in &self.walked {
+            let tile = [
+                (*fx).max(wx0),
+                (*fy).max(wy0),
+                (fx + FINE).min(wx1),
+                (fy + FINE).min(wy1),
+            ];
+            if tile[0] < tile[2] && tile[1] < tile[3] {
+                let bodies = &self.walked_bodies[bodies.clone()];
+                f(&self.scene, &self.optics, tile, bodies);
+            }
+        }
+    }
+
+    /// Culls the fine tiles of `window` (the optics covering it) into
+    /// `walked`: each coarse tile against every body, then its fine tiles
+    /// against the bodies left, nearest first.
+    fn walk(&mut self, camera: &Camera, window: Roi) {
+        self.walked.clear();
+        self.walked_bodies.clear();
         let (wx0, wy0) = (window.x0, window.y0);
         let (wx1, wy1) = (wx0 + window.width, wy0 + window.height);
         let all = self.scene.bodies.len().min(MAX_BODIES) as u16;
@@ -286,19 +332,14 @@ impl Rasterizer {
                         while fx < ex {
                             let cone = self.optics.cone(camera, FINE, fx / FINE, fy / FINE);
                             let rect = [fx, fy, fx + FINE, fy + FINE].map(f64::from);
-                            self.fine.clear();
-                            self.fine.extend(self.coarse.iter().copied().filter(|&i| {
-                                let body = &self.scene.bodies[usize::from(i)];
-                                body.box_meets(rect) && body.may_meet(&cone)
-                            }));
-                            if !self.fine.is_empty() {
-                                let tile = [
-                                    fx.max(wx0),
-                                    fy.max(wy0),
-                                    (fx + FINE).min(ex),
-                                    (fy + FINE).min(ey),
-                                ];
-                                f(&self.scene, &self.optics, tile, &self.fine);
+                            let from = self.walked_bodies.len();
+                            self.walked_bodies
+                                .extend(self.coarse.iter().copied().filter(|&i| {
+                                    let body = &self.scene.bodies[usize::from(i)];
+                                    body.box_meets(rect) && body.may_meet(&cone)
+                                }));
+                            if self.walked_bodies.len() > from {
+                                self.walked.push(([fx, fy], from..self.walked_bodies.len()));
                             }
                             fx += FINE;
                         }
@@ -309,6 +350,7 @@ impl Rasterizer {
             }
             cy += COARSE;
         }
+        self.walked_over = Some((*camera, window));
     }
 }
 
@@ -334,10 +376,13 @@ impl Rasterizer {
             |scene, optics, [x0, y0, x1, y1], candidates| {
                 lanes.load(optics, [x0, y0, x1, y1]);
                 lanes.cast(&scene.bodies, candidates, wide);
-                let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y)));
-                for (k, (x, y)) in pixels.enumerate() {
-                    if let Some(hit) = lanes.hit(scene, k) {
-                        f(x, y, hit);
+                let mut k = 0;
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        if let Some(hit) = lanes.hit(scene, k) {
+                            f(x, y, hit);
+                        }
+                        k += 1;
                     }
                 }
             },
@@ -449,13 +494,17 @@ impl Lanes {
     /// and a hit nearer than every body (−∞), so they never hold a tile's
     /// bodies back from the nearest-first stop.
     fn load(&mut self, optics: &Optics, [x0, y0, x1, y1]: [u32; 4]) {
-        let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y)));
         let mut n = 0;
-        for (k, (x, y)) in pixels.enumerate().take(TILE_RAYS) {
-            let d = optics.ray(x, y);
-            (self.dx[k], self.dy[k], self.dz[k]) = (d.x, d.y, d.z);
-            (self.pu[k], self.pv[k]) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
-            n = k + 1;
+        for y in y0..y1 {
+            let v = f64::from(y) + 0.5;
+            for (x, r) in (x0..x1).zip(optics.row(x0, x1, y)) {
+                if n == TILE_RAYS {
+                    break;
+                }
+                (self.dx[n], self.dy[n], self.dz[n]) = r.map(f64::from).into();
+                (self.pu[n], self.pv[n]) = (f64::from(x) + 0.5, v);
+                n += 1;
+            }
         }
         self.pu[n..].fill(f64::NAN);
         self.pv[n..].fill(f64::NAN);
@@ -1273,6 +1322,86 @@ mod tests {
             );
         }
         assert!(hits > 1000 && misses > 1000, "{hits} {misses}");
+    }
+
+    /// A window inside the last one walked takes that walk's tiles: the
+    /// same tiles and candidates, in the same order, as a walk of its own
+    /// (a fresh rasterizer's); a window outside it, another shape or
+    /// another camera walks again.
+    #[test]
+    fn a_window_inside_the_last_walk_takes_its_tiles() {
+        fn walk(
+            raster: &mut Rasterizer,
+            camera: &Camera,
+            window: Roi,
+        ) -> Vec<([u32; 4], Vec<u16>)> {
+            let mut seen = Vec::new();
+            raster.tiles(camera, window, |_, _, tile, bodies| {
+                seen.push((tile, bodies.to_vec()))
+            });
+            seen
+        }
+        let camera = Camera::default();
+        let moved = {
+            let mut c = camera;
+            c.intrinsics.cx += 7.0;
+            c
+        };
+        let k = camera.intrinsics;
+        let work = Roi {
+            x0: 101,
+            y0: 77,
+            width: 303,
+            height: 251,
+        };
+        let inner = Roi {
+            x0: 102,
+            y0: 78,
+            width: 301,
+            height: 249,
+        };
+        let outside = Roi {
+            x0: 90,
+            y0: 78,
+            width: 301,
+            height: 249,
+        };
+        let mut replayed = 0;
+        for (theta, d) in [(-60.0, 8.0), (0.0, 10.0), (45.0, 30.0)] {
+            let shape = Instrument::kflex().shape(theta, d).expect("shape");
+            let other = Instrument::kflex().shape(theta + 20.0, d).expect("shape");
+            let mut raster = Rasterizer::new();
+            raster.prepare(&camera, &shape);
+            let first = walk(&mut raster, &camera, work);
+            for (cam, s, window) in [
+                (&camera, &shape, inner),
+                (&camera, &shape, work),
+                (&camera, &shape, outside),
+                (&moved, &shape, inner),
+                (&camera, &other, inner),
+                (&camera, &shape, Roi::whole(k.width, k.height)),
+            ] {
+                let mut fresh = Rasterizer::new();
+                fresh.prepare(cam, s);
+                let own = walk(&mut fresh, cam, window);
+                let mut again = Rasterizer::new();
+                again.prepare(&camera, &shape);
+                assert_eq!(walk(&mut again, &camera, work), first);
+                let same = std::ptr::eq(cam, &camera) && std::ptr::eq(s, &shape);
+                if !same {
+                    again.prepare(cam, s);
+                }
+                let got = walk(&mut again, cam, window);
+                assert_eq!(got, own, "θ = {theta}, d = {d}, {window:?}");
+                // taken from the walk over `work`, or walked again
+                let kept = same && work.holds(&window);
+                let over = if kept { work } else { window };
+                assert_eq!(again.walked_over, Some((*cam, over)), "{window:?}");
+                replayed += usize::from(kept);
+            }
+            assert!(first.len() > 20, "{}", first.len());
+        }
+        assert_eq!(replayed, 6);
     }
 
     /// The AVX2 copy of the lane cast gives the portable one's bits, lane

@@ -650,12 +650,14 @@ impl SceneRenderer {
                     for x in x0 as usize..x1 as usize {
                         let i = x - work_x0;
                         let here = mid[i].checked_sub(1);
-                        // an edge: a neighbour's centre ray disagrees (within the image)
-                        let differs = |r: &[u32], j: usize| (r[j] != 0) != here.is_some();
-                        let edge = (x > 0 && differs(mid, i - 1))
-                            || (x + 1 < w && differs(mid, i + 1))
-                            || above.is_some_and(|r| differs(r, i))
-                            || below.is_some_and(|r| differs(r, i));
+                        // an edge: a neighbour's centre ray disagrees (within
+                        // the image; a neighbour outside it agrees)
+                        let set = here.is_some();
+                        let left = if x > 0 { mid[i - 1] != 0 } else { set };
+                        let right = if x + 1 < w { mid[i + 1] != 0 } else { set };
+                        let up = above.map_or(set, |r| r[i] != 0);
+                        let down = below.map_or(set, |r| r[i] != 0);
+                        let edge = (left != set) | (right != set) | (up != set) | (down != set);
                         let p = ((y - region.y0 as usize) * rw + (x - region.x0 as usize)) as u32;
                         if edge {
                             // its four rays, cast with the tile's other edges' below
