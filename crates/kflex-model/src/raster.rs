@@ -1348,24 +1348,14 @@ mod tests {
             c
         };
         let k = camera.intrinsics;
-        let work = Roi {
-            x0: 101,
-            y0: 77,
-            width: 303,
-            height: 251,
+        let roi = |[x0, y0, width, height]: [u32; 4]| Roi {
+            x0,
+            y0,
+            width,
+            height,
         };
-        let inner = Roi {
-            x0: 102,
-            y0: 78,
-            width: 301,
-            height: 249,
-        };
-        let outside = Roi {
-            x0: 90,
-            y0: 78,
-            width: 301,
-            height: 249,
-        };
+        let (work, inner) = (roi([101, 77, 303, 251]), roi([102, 78, 301, 249]));
+        let outside = roi([90, 78, 301, 249]);
         let mut replayed = 0;
         for (theta, d) in [(-60.0, 8.0), (0.0, 10.0), (45.0, 30.0)] {
             let shape = Instrument::kflex().shape(theta, d).expect("shape");
