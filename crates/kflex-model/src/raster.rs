@@ -1326,15 +1326,13 @@ mod tests {
 
     /// A window inside the last one walked takes that walk's tiles: the
     /// same tiles and candidates, in the same order, as a walk of its own
-    /// (a fresh rasterizer's); a window outside it, another shape or
-    /// another camera walks again.
+    /// (a fresh rasterizer's), tiles outside it dropped and those across
+    /// its edge clipped; a window outside it, another shape or another
+    /// camera walks again.
     #[test]
     fn a_window_inside_the_last_walk_takes_its_tiles() {
-        fn walk(
-            raster: &mut Rasterizer,
-            camera: &Camera,
-            window: Roi,
-        ) -> Vec<([u32; 4], Vec<u16>)> {
+        type Walk = Vec<([u32; 4], Vec<u16>)>;
+        fn walk(raster: &mut Rasterizer, camera: &Camera, window: Roi) -> Walk {
             let mut seen = Vec::new();
             raster.tiles(camera, window, |_, _, tile, bodies| {
                 seen.push((tile, bodies.to_vec()))
@@ -1342,11 +1340,6 @@ mod tests {
             seen
         }
         let camera = Camera::default();
-        let moved = {
-            let mut c = camera;
-            c.intrinsics.cx += 7.0;
-            c
-        };
         let k = camera.intrinsics;
         let roi = |[x0, y0, width, height]: [u32; 4]| Roi {
             x0,
@@ -1354,44 +1347,90 @@ mod tests {
             width,
             height,
         };
-        let (work, inner) = (roi([101, 77, 303, 251]), roi([102, 78, 301, 249]));
-        let outside = roi([90, 78, 301, 249]);
-        let mut replayed = 0;
+        let work = roi([101, 77, 303, 251]);
+        // inside it: grown by a pixel (as a frame's shading), on the 8 and
+        // 32 px lines of the tiles, small; then not inside it
+        let windows = [
+            roi([102, 78, 301, 249]),
+            roi([104, 80, 296, 248]),
+            roi([200, 150, 40, 30]),
+            work,
+            roi([90, 78, 301, 249]),
+            Roi::whole(k.width, k.height),
+        ];
+        let (mut replayed, mut dropped, mut clipped) = (0, 0, 0);
         for (theta, d) in [(-60.0, 8.0), (0.0, 10.0), (45.0, 30.0)] {
             let shape = Instrument::kflex().shape(theta, d).expect("shape");
             let other = Instrument::kflex().shape(theta + 20.0, d).expect("shape");
-            let mut raster = Rasterizer::new();
-            raster.prepare(&camera, &shape);
-            let first = walk(&mut raster, &camera, work);
-            for (cam, s, window) in [
-                (&camera, &shape, inner),
-                (&camera, &shape, work),
-                (&camera, &shape, outside),
-                (&moved, &shape, inner),
-                (&camera, &other, inner),
-                (&camera, &shape, Roi::whole(k.width, k.height)),
-            ] {
+            let mut first_walk = Rasterizer::new();
+            first_walk.prepare(&camera, &shape);
+            // the whole image's tiles (8 px each: its sides are multiples
+            // of 8), clipped to a window by hand, in their order
+            let whole = walk(&mut first_walk, &camera, Roi::whole(k.width, k.height));
+            assert!(
+                whole
+                    .iter()
+                    .all(|(b, _)| b[2] - b[0] == FINE && b[3] - b[1] == FINE)
+            );
+            let clip = |w: Roi| -> Walk {
+                let (x1, y1) = (w.x0 + w.width, w.y0 + w.height);
+                let boxes = whole.iter().map(|(b, c)| {
+                    let b = [b[0].max(w.x0), b[1].max(w.y0), b[2].min(x1), b[3].min(y1)];
+                    (b, c.clone())
+                });
+                boxes.filter(|(b, _)| b[0] < b[2] && b[1] < b[3]).collect()
+            };
+            let first = walk(&mut first_walk, &camera, work);
+            assert_eq!(first, clip(work));
+            assert!(first.len() > 20, "{}", first.len());
+            for (s, window) in windows
+                .iter()
+                .map(|&w| (&shape, w))
+                .chain([(&other, windows[0])])
+            {
                 let mut fresh = Rasterizer::new();
-                fresh.prepare(cam, s);
-                let own = walk(&mut fresh, cam, window);
+                fresh.prepare(&camera, s);
+                let own = walk(&mut fresh, &camera, window);
                 let mut again = Rasterizer::new();
                 again.prepare(&camera, &shape);
                 assert_eq!(walk(&mut again, &camera, work), first);
-                let same = std::ptr::eq(cam, &camera) && std::ptr::eq(s, &shape);
+                let same = std::ptr::eq(s, &shape);
                 if !same {
-                    again.prepare(cam, s);
+                    again.prepare(&camera, s);
                 }
-                let got = walk(&mut again, cam, window);
+                let got = walk(&mut again, &camera, window);
                 assert_eq!(got, own, "θ = {theta}, d = {d}, {window:?}");
+                if same {
+                    assert_eq!(got, clip(window), "θ = {theta}, d = {d}, {window:?}");
+                }
                 // taken from the walk over `work`, or walked again
                 let kept = same && work.holds(&window);
                 let over = if kept { work } else { window };
-                assert_eq!(again.walked_over, Some((*cam, over)), "{window:?}");
-                replayed += usize::from(kept);
+                assert_eq!(again.walked_over, Some((camera, over)), "{window:?}");
+                if kept {
+                    replayed += 1;
+                    dropped += first.len() - got.len();
+                    // a box that is not its tile's in the walk over `work`
+                    let corner = |b: [u32; 4]| [b[0] / FINE, b[1] / FINE];
+                    clipped += got
+                        .iter()
+                        .filter(|(b, _)| !first.iter().any(|(f, _)| f == b))
+                        .filter(|(b, _)| first.iter().any(|(f, _)| corner(*f) == corner(*b)))
+                        .count();
+                }
             }
-            assert!(first.len() > 20, "{}", first.len());
         }
-        assert_eq!(replayed, 6);
+        assert_eq!(replayed, 12);
+        assert!(dropped > 20 && clipped > 20, "{dropped} {clipped}");
+        // another camera, the shape not prepared again: walked again
+        let shape = Instrument::kflex().shape(0.0, 10.0).expect("shape");
+        let mut raster = Rasterizer::new();
+        raster.prepare(&camera, &shape);
+        let _ = walk(&mut raster, &camera, work);
+        let mut moved = camera;
+        moved.intrinsics.cx += 7.0;
+        let _ = walk(&mut raster, &moved, windows[0]);
+        assert_eq!(raster.walked_over, Some((moved, windows[0])));
     }
 
     /// The AVX2 copy of the lane cast gives the portable one's bits, lane
