@@ -21,7 +21,7 @@ use matrix::{Bench, Condition, cases};
 const BOUNDS: [(Condition, f64, f64); 12] = [
     (Condition::Baseline, 0.90, 0.85),                  // 0.958 / 0.914
     (Condition::Gain(0.4), 0.90, 0.85),                 // 0.928 / 0.898
-    (Condition::Gain(1.6), 0.90, 0.85),                 // 0.907 / 0.870
+    (Condition::Gain(1.6), 0.90, 0.85),                 // 0.927 / 0.881
     (Condition::Noise(0.1), 0.90, 0.85),                // 0.910 / 0.855
     (Condition::Blur(3.0), 0.85, 0.82), // BELOW GOAL: 0.855 / 0.821 (median 0.946 / 0.924)
     (Condition::Tint(0.25), 0.81, 0.73), // BELOW GOAL: 0.818 / 0.736 (median 0.985 / 0.983)
@@ -115,7 +115,7 @@ fn no_instrument_only_when_there_is_none() {
 const MOST_UNDER_GOAL: [(u64, [usize; 16]); 3] = [
     (100, [0, 1, 1, 4, 6, 1, 0, 5, 0, 4, 0, 0, 0, 0, 0, 0]),
     (200, [0, 0, 1, 5, 6, 2, 0, 7, 1, 5, 0, 0, 0, 0, 0, 0]),
-    (300, [0, 0, 2, 3, 4, 3, 0, 2, 0, 3, 0, 0, 0, 0, 0, 0]),
+    (300, [0, 0, 2, 2, 4, 3, 0, 2, 0, 3, 0, 0, 0, 0, 0, 0]),
 ];
 
 fn under_goal_on_other_backgrounds(offset: u64) {

@@ -184,7 +184,14 @@ fn near_line(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], width: f32) -> boo
 ///    the line through them, and is about as bright as the instrument it
 ///    borders ([`SegmentParams::grow_brightness`]; not where `T` lies within
 ///    [`SegmentParams::grow_separation`] of `M`), two rounds;
-/// 5. a specular region takes the class that borders most of it.
+/// 5. a specular region takes the class that borders most of it, but a
+///    region with a clipped channel whose darkest channel does not clip and
+///    whose chromaticity lies more than [`SegmentParams::grow_separation`]
+///    from `M` and nearer `T` is tissue: one clipped channel leaves a
+///    colour, and steel that clips is white (where noise lowers the
+///    thresholds, bright pink tissue beside the tip, bordered mostly by
+///    other clipped tissue, took the instrument's class from the few
+///    regions around it that were not clipped).
 pub(super) fn classify(
     s: &mut Scratch,
     p: &SegmentParams,
@@ -442,10 +449,23 @@ pub(super) fn classify(
         }
     }
     // 5: clipped regions and highlights take their neighbours' class, by
-    // shared cell edges
+    // shared cell edges; but one channel clipping leaves a colour, and a
+    // region whose colour lies clearly off the metal's, on the tissue's
+    // side, is tissue (steel that clips is white; tissue among other
+    // clipped tissue would take the class of the few regions it borders
+    // that are not clipped, the instrument's where it hangs beside it)
     for &i in roots.iter() {
         let i = i as usize;
         if region_class[i] == CLIPPED {
+            let r = &regions[i];
+            if brightest(r.mean) > saturated_value
+                && darkest(r.mean) <= clip_value
+                && dist2(r.chroma, metal) > p.grow_separation.powi(2)
+                && !metal_side(r.chroma, metal, tissue, 0.5)
+            {
+                instrument[i] = 0;
+                continue;
+            }
             let mut votes = [0u32; 2];
             for &[o, n] in graph::neighbours(adjacency, adjacency_start, i) {
                 if region_class[o as usize] != CLIPPED {

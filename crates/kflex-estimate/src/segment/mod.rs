@@ -271,7 +271,8 @@ pub fn segment(
 ///    [`SegmentParams::clip_value`]), regions with a clipped channel
 ///    ([`SegmentParams::saturated_value`]) and small highlights
 ///    ([`SegmentParams::highlight_ratio`]) take the class of the regions
-///    around them. A frame of one colour has nothing to tell apart and finds no
+///    around them, except a region with one channel clipped whose colour
+///    lies clearly on the tissue's side, which is tissue. A frame of one colour has nothing to tell apart and finds no
 ///    instrument, whatever the colour.
 ///    Tape is red, so a taped part is lost, as in the paper.
 /// 5. **The instrument is one object**, on the graph of the merged regions
@@ -749,6 +750,37 @@ mod tests {
                 * t
                 * (-x * x).exp();
         y.copysign(x)
+    }
+
+    #[test]
+    fn tissue_with_one_clipped_channel_stays_tissue_beside_the_steel() {
+        // steel, then two blocks of bright pink tissue whose red channel
+        // clips (regions left to their neighbours' class), then pink tissue
+        // that does not clip: the first pink block borders no region but
+        // the steel that is not clipped itself, yet its colour, though one
+        // channel clipped, lies far on the tissue's side: tissue
+        let (w, h) = (160usize, 96usize);
+        let rgb = paint(w, h, 0.01, 5, |x, _| match x {
+            0..48 => [150.0, 152.0, 160.0],
+            48..96 => [255.0, 140.0, 125.0],
+            96..128 => [255.0, 185.0, 165.0],
+            _ => [200.0, 110.0, 100.0],
+        });
+        let roi = Roi {
+            x0: 0,
+            y0: 0,
+            width: w as u32,
+            height: h as u32,
+        };
+        let seg = segment(&rgb, w as u32, h as u32, roi, &SegmentParams::default()).unwrap();
+        for (y, row) in seg.full.data().chunks_exact(w).enumerate() {
+            assert!(row[..44].iter().all(|&v| v == 1), "row {y}: steel lost");
+            assert!(
+                row[52..].iter().all(|&v| v == 0),
+                "row {y}: {:?}",
+                &row[44..]
+            );
+        }
     }
 
     #[test]
