@@ -75,7 +75,8 @@ pub struct SegmentParams {
     /// grey, pale or white tissue a share of the way is within the noise.
     /// Also how far from the metal's a region left for the specular step
     /// (a clipped channel) must lie for its colour to count toward the
-    /// tissue's.
+    /// tissue's, and, where it lies on the tissue's side and its darkest
+    /// channel does not clip, for it to be tissue outright.
     pub grow_separation: f32,
     /// A region grows into the instrument only where it is at most this many
     /// times as bright as the instrument it borders (a far gripper is no
@@ -90,9 +91,12 @@ pub struct SegmentParams {
     /// this and [`SegmentParams::saturated_value`] then move down to stay
     /// 0.02 below that.
     pub clip_value: f32,
-    /// A region whose brightest channel is above this has lost its
+    /// A region whose brightest channel is above this has lost part of its
     /// chromaticity to the sensor's clipping (bright tissue under a high
-    /// gain turns pale) and takes the class of the regions around it too.
+    /// gain turns pale) and takes the class of the regions around it too,
+    /// unless its darkest channel does not clip and its chromaticity lies
+    /// more than [`SegmentParams::grow_separation`] from the metal's, on the
+    /// tissue's side: then it is tissue (steel that clips is white).
     pub saturated_value: f32,
     /// A region brighter than the region of interest's median and than the
     /// mean of its neighbours by this factor, and smaller than
@@ -271,8 +275,9 @@ pub fn segment(
 ///    [`SegmentParams::clip_value`]), regions with a clipped channel
 ///    ([`SegmentParams::saturated_value`]) and small highlights
 ///    ([`SegmentParams::highlight_ratio`]) take the class of the regions
-///    around them, except a region with one channel clipped whose colour
-///    lies clearly on the tissue's side, which is tissue. A frame of one colour has nothing to tell apart and finds no
+///    around them, except a region with a clipped channel but an
+///    unclipped darkest one whose colour lies clearly on the tissue's side,
+///    which is tissue. A frame of one colour has nothing to tell apart and finds no
 ///    instrument, whatever the colour.
 ///    Tape is red, so a taped part is lost, as in the paper.
 /// 5. **The instrument is one object**, on the graph of the merged regions
@@ -780,6 +785,36 @@ mod tests {
                 "row {y}: {:?}",
                 &row[44..]
             );
+        }
+    }
+
+    #[test]
+    fn clipped_steel_beside_the_steel_stays_steel() {
+        // a sheen at the steel's edge, its red channel clipped and tinted
+        // by the pale tissue beside it: its colour lies past half way to
+        // the tissue's, but within `grow_separation` of the metal's, so it
+        // takes the class of the regions around it, mostly steel (without
+        // that distance it would be tissue)
+        let (w, h) = (160usize, 96usize);
+        let rgb = paint(w, h, 0.01, 6, |x, y| match (x, y) {
+            (40..56, 32..64) => [255.0, 240.0, 232.0],
+            (0..56, _) => [150.0, 152.0, 160.0],
+            _ => [200.0, 180.0, 175.0],
+        });
+        let roi = Roi {
+            x0: 0,
+            y0: 0,
+            width: w as u32,
+            height: h as u32,
+        };
+        let seg = segment(&rgb, w as u32, h as u32, roi, &SegmentParams::default()).unwrap();
+        for (y, row) in seg.full.data().chunks_exact(w).enumerate() {
+            assert!(
+                row[..52].iter().all(|&v| v == 1),
+                "row {y}: {:?}",
+                &row[..56]
+            );
+            assert!(row[60..].iter().all(|&v| v == 0), "row {y}");
         }
     }
 
