@@ -757,6 +757,19 @@ mod tests {
         y.copysign(x)
     }
 
+    /// The rows of the mask `segment` finds in the whole `w × h` frame, with
+    /// the default thresholds.
+    fn whole_rows(rgb: &[u8], w: usize, h: usize) -> Vec<Vec<u8>> {
+        let (width, height) = (w as u32, h as u32);
+        let roi = Roi::whole(width, height);
+        let seg = segment(rgb, width, height, roi, &SegmentParams::default()).unwrap();
+        seg.full
+            .data()
+            .chunks_exact(w)
+            .map(<[u8]>::to_vec)
+            .collect()
+    }
+
     #[test]
     fn tissue_with_one_clipped_channel_stays_tissue_beside_the_steel() {
         // steel, then two blocks of bright pink tissue whose red channel
@@ -771,14 +784,7 @@ mod tests {
             96..128 => [255.0, 185.0, 165.0],
             _ => [200.0, 110.0, 100.0],
         });
-        let roi = Roi {
-            x0: 0,
-            y0: 0,
-            width: w as u32,
-            height: h as u32,
-        };
-        let seg = segment(&rgb, w as u32, h as u32, roi, &SegmentParams::default()).unwrap();
-        for (y, row) in seg.full.data().chunks_exact(w).enumerate() {
+        for (y, row) in whole_rows(&rgb, w, h).iter().enumerate() {
             assert!(row[..44].iter().all(|&v| v == 1), "row {y}: steel lost");
             assert!(
                 row[52..].iter().all(|&v| v == 0),
@@ -801,14 +807,7 @@ mod tests {
             (0..56, _) => [150.0, 152.0, 160.0],
             _ => [200.0, 180.0, 175.0],
         });
-        let roi = Roi {
-            x0: 0,
-            y0: 0,
-            width: w as u32,
-            height: h as u32,
-        };
-        let seg = segment(&rgb, w as u32, h as u32, roi, &SegmentParams::default()).unwrap();
-        for (y, row) in seg.full.data().chunks_exact(w).enumerate() {
+        for (y, row) in whole_rows(&rgb, w, h).iter().enumerate() {
             assert!(
                 row[..52].iter().all(|&v| v == 1),
                 "row {y}: {:?}",
