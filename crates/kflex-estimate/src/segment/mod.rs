@@ -55,7 +55,9 @@ pub struct SegmentParams {
     /// places its boundary between the two from each frame's statistics.
     pub metal_chroma: [f32; 2],
     /// A region brighter than this many times the region of interest's
-    /// median brightness is instrument only where its chromaticity lies
+    /// median brightness (and than 0.6 of its 90th percentile, so that the
+    /// dark lumen's median does not make a dim part bright) is instrument
+    /// only where its chromaticity lies
     /// within [`SegmentParams::bright_metal_share`] of the way from the
     /// metal's to the tissue's (other regions: within half the way, the
     /// nearer class). Bright tissue is pulled toward white by its wet sheen
@@ -814,6 +816,31 @@ mod tests {
                 &row[..56]
             );
             assert!(row[60..].iter().all(|&v| v == 0), "row {y}");
+        }
+    }
+
+    #[test]
+    fn a_dim_tinted_part_beside_the_lumen_is_not_held_to_the_bright_rule() {
+        // dark lumen over most of the region (its median is the lumen's),
+        // steel, a dim part of the steel tinted a third of the way toward
+        // the tissue, pink tissue: the dim part is brighter than 1.2 times
+        // the median, yet dim against the steel, so it is judged by the
+        // nearer colour (the bright rule, within 0.3 of the way, would make
+        // it tissue)
+        let (w, h) = (160usize, 96usize);
+        let rgb = paint(w, h, 0.01, 7, |x, _| match x {
+            0..32 => [150.0, 152.0, 160.0],
+            32..48 => [76.5, 60.8, 61.2],
+            48..64 => [200.0, 110.0, 100.0],
+            _ => [40.0, 25.0, 22.0],
+        });
+        for (y, row) in whole_rows(&rgb, w, h).iter().enumerate() {
+            assert!(
+                row[..46].iter().all(|&v| v == 1),
+                "row {y}: {:?}",
+                &row[..50]
+            );
+            assert!(row[50..].iter().all(|&v| v == 0), "row {y}");
         }
     }
 
