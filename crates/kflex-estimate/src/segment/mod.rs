@@ -55,12 +55,12 @@ pub struct SegmentParams {
     /// places its boundary between the two from each frame's statistics.
     pub metal_chroma: [f32; 2],
     /// A region brighter than this many times the region of interest's
-    /// median brightness (and than 0.6 of its 90th percentile, so that the
-    /// dark lumen's median does not make a dim part bright) is instrument
-    /// only where its chromaticity lies
-    /// within [`SegmentParams::bright_metal_share`] of the way from the
-    /// metal's to the tissue's (other regions: within half the way, the
-    /// nearer class). Bright tissue is pulled toward white by its wet sheen
+    /// median brightness (and than a share of its 90th percentile,
+    /// `BRIGHT_OF_BRIGHTEST` in `classify.rs`, so that the dark lumen's
+    /// median does not make a dim part bright) is instrument only where its
+    /// chromaticity lies within [`SegmentParams::bright_metal_share`] of the
+    /// way from the metal's to the tissue's (other regions: within half the
+    /// way, the nearer class). Bright tissue is pulled toward white by its wet sheen
     /// and by its red channel clipping, toward the steel's near-neutral
     /// colour; bright steel is not pulled toward the tissue's.
     pub bright_ratio: f32,
@@ -822,8 +822,9 @@ mod tests {
     #[test]
     fn a_dim_tinted_part_beside_the_lumen_is_not_held_to_the_bright_rule() {
         // dark lumen over most of the region (its median is the lumen's),
-        // steel, a dim part of the steel tinted a third of the way toward
-        // the tissue, pink tissue: the dim part is brighter than 1.2 times
+        // steel, a dim part of the steel tinted about 0.4 of the way toward
+        // the tissue colour the frame estimates (the lumen's, reddish), pink
+        // tissue: the dim part is brighter than 1.2 times
         // the median, yet dim against the steel, so it is judged by the
         // nearer colour (the bright rule, within 0.3 of the way, would make
         // it tissue)
