@@ -759,17 +759,31 @@ mod tests {
         y.copysign(x)
     }
 
-    /// The rows of the mask `segment` finds in the whole `w × h` frame, with
-    /// the default thresholds.
-    fn whole_rows(rgb: &[u8], w: usize, h: usize) -> Vec<Vec<u8>> {
+    /// Segments the whole `w × h` frame with the default thresholds and
+    /// asserts, on every row, instrument left of column `instrument_to` and
+    /// tissue from column `tissue_from` (the boundary's few pixels between
+    /// them free).
+    fn assert_instrument_left(
+        rgb: &[u8],
+        w: usize,
+        h: usize,
+        instrument_to: usize,
+        tissue_from: usize,
+    ) {
         let (width, height) = (w as u32, h as u32);
         let roi = Roi::whole(width, height);
         let seg = segment(rgb, width, height, roi, &SegmentParams::default()).unwrap();
-        seg.full
-            .data()
-            .chunks_exact(w)
-            .map(<[u8]>::to_vec)
-            .collect()
+        for (y, row) in seg.full.data().chunks_exact(w).enumerate() {
+            let near = &row[instrument_to.saturating_sub(4)..(tissue_from + 4).min(w)];
+            assert!(
+                row[..instrument_to].iter().all(|&v| v == 1),
+                "row {y}: instrument lost, {near:?}"
+            );
+            assert!(
+                row[tissue_from..].iter().all(|&v| v == 0),
+                "row {y}: tissue taken, {near:?}"
+            );
+        }
     }
 
     #[test]
@@ -786,14 +800,7 @@ mod tests {
             96..128 => [255.0, 185.0, 165.0],
             _ => [200.0, 110.0, 100.0],
         });
-        for (y, row) in whole_rows(&rgb, w, h).iter().enumerate() {
-            assert!(row[..44].iter().all(|&v| v == 1), "row {y}: steel lost");
-            assert!(
-                row[52..].iter().all(|&v| v == 0),
-                "row {y}: {:?}",
-                &row[44..]
-            );
-        }
+        assert_instrument_left(&rgb, w, h, 44, 52);
     }
 
     #[test]
@@ -809,14 +816,7 @@ mod tests {
             (0..56, _) => [150.0, 152.0, 160.0],
             _ => [200.0, 180.0, 175.0],
         });
-        for (y, row) in whole_rows(&rgb, w, h).iter().enumerate() {
-            assert!(
-                row[..52].iter().all(|&v| v == 1),
-                "row {y}: {:?}",
-                &row[..56]
-            );
-            assert!(row[60..].iter().all(|&v| v == 0), "row {y}");
-        }
+        assert_instrument_left(&rgb, w, h, 52, 60);
     }
 
     #[test]
@@ -824,10 +824,9 @@ mod tests {
         // dark lumen over most of the region (its median is the lumen's),
         // steel, a dim part of the steel tinted about 0.4 of the way toward
         // the tissue colour the frame estimates (the lumen's, reddish), pink
-        // tissue: the dim part is brighter than 1.2 times
-        // the median, yet dim against the steel, so it is judged by the
-        // nearer colour (the bright rule, within 0.3 of the way, would make
-        // it tissue)
+        // tissue: the dim part is brighter than 1.2 times the median, yet
+        // dim against the steel, so it is judged by the nearer colour (the
+        // bright rule, within 0.3 of the way, would make it tissue)
         let (w, h) = (160usize, 96usize);
         let rgb = paint(w, h, 0.01, 7, |x, _| match x {
             0..32 => [150.0, 152.0, 160.0],
@@ -835,14 +834,7 @@ mod tests {
             48..64 => [200.0, 110.0, 100.0],
             _ => [40.0, 25.0, 22.0],
         });
-        for (y, row) in whole_rows(&rgb, w, h).iter().enumerate() {
-            assert!(
-                row[..46].iter().all(|&v| v == 1),
-                "row {y}: {:?}",
-                &row[..50]
-            );
-            assert!(row[50..].iter().all(|&v| v == 0), "row {y}");
-        }
+        assert_instrument_left(&rgb, w, h, 46, 50);
     }
 
     #[test]
