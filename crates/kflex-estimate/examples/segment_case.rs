@@ -1,10 +1,13 @@
-//! Draws one case of the robustness matrix as a PNG to look at: the region
+//! Draws one case of the robustness matrix as a PNG to look at (and prints
+//! its score as the matrix does): the region
 //! of interest as rendered, the renderer's truth, and the segmentation
 //! (green: found and true, red: found but tissue, blue: missed).
 //!
 //! `cargo run --release -p kflex-estimate --example segment_case -- CONDITION BACKGROUND THETA D OUT.png`
 //! with CONDITION the index into the goal conditions (0 baseline … 11 yellow
-//! tissue, in `tests/matrix`), BACKGROUND colon, stomach or larynx.
+//! tissue), then those past the goals (12–15) and the edges of IBJAE's
+//! training ranges (16–19), in the order `tests/matrix` lists them;
+//! BACKGROUND colon, stomach or larynx.
 
 #[path = "../tests/matrix/mod.rs"]
 mod matrix;
@@ -21,6 +24,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let condition = *Condition::GOALS
         .iter()
         .chain(Condition::BEYOND.iter())
+        .chain(Condition::TRAINING.iter())
         .nth(condition.parse()?)
         .ok_or("condition index out of range")?;
     let background = match background.as_str() {
@@ -39,7 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Ok(offset) = std::env::var("KFLEX_MATRIX_SEED") {
         bench.seed_offset = offset.parse()?;
     }
-    let (frame, _) = bench.frame(case, condition);
+    let (frame, distal) = bench.frame(case, condition);
     let roi = bench.roi_of(case);
     let truth = frame.instrument.crop(roi)?;
     // as in `robustness_table`: `KFLEX_SEGMENT_PARAMS` overrides the fields it names
@@ -76,8 +80,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             img.put_pixel(w + x, y, image::Rgb(c));
         }
     }
+    // as the robustness matrix scores it: in the region, and on the bend and
+    // gripper alone
     if let Some(m) = &found {
-        println!("IoU {:.3}", m.iou(&truth)?);
+        let s = matrix::Score::of(m, &truth, &distal.crop(roi)?);
+        let distal = s.distal.map_or("not scored".into(), |d| format!("{d:.3}"));
+        println!(
+            "IoU {:.3} in the region, {distal} on the bend and gripper",
+            s.roi
+        );
     }
     img.save(out)?;
     Ok(())

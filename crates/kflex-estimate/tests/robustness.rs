@@ -23,7 +23,7 @@ const BOUNDS: [(Condition, f64, f64); 12] = [
     (Condition::Gain(0.4), 0.90, 0.85),                 // 0.928 / 0.898
     (Condition::Gain(1.6), 0.90, 0.85),                 // 0.927 / 0.881
     (Condition::Noise(0.1), 0.90, 0.85),                // 0.910 / 0.855
-    (Condition::Blur(3.0), 0.85, 0.82), // BELOW GOAL: 0.855 / 0.821 (median 0.946 / 0.924)
+    (Condition::Blur(3.0), 0.89, 0.82), // BELOW GOAL: 0.891 / 0.821 (median 0.946 / 0.924)
     (Condition::Tint(0.25), 0.90, 0.85), // 0.964 / 0.927
     (Condition::Specular, 0.90, 0.85),  // 0.928 / 0.876
     (Condition::Tissue(Tissue::Grey), 0.88, 0.85), // BELOW GOAL: 0.888 / 0.855 (median 0.972 / 0.966)
@@ -113,9 +113,9 @@ fn no_instrument_only_when_there_is_none() {
 /// background per organ, and these keep the segmentation from being tuned
 /// to it. As measured; goal 0 for each.
 const MOST_UNDER_GOAL: [(u64, [usize; 16]); 3] = [
-    (100, [0, 1, 1, 3, 6, 1, 0, 5, 0, 4, 0, 0, 0, 0, 0, 0]),
-    (200, [0, 0, 1, 5, 6, 2, 0, 7, 1, 5, 0, 0, 0, 0, 0, 0]),
-    (300, [0, 0, 2, 2, 4, 3, 0, 2, 0, 3, 0, 0, 0, 0, 0, 0]),
+    (100, [0, 1, 1, 3, 6, 0, 0, 5, 0, 4, 0, 0, 0, 0, 0, 0]),
+    (200, [0, 0, 1, 3, 5, 0, 0, 7, 1, 3, 0, 0, 0, 0, 0, 0]),
+    (300, [0, 0, 2, 2, 4, 0, 0, 2, 0, 2, 0, 0, 0, 0, 0, 0]),
 ];
 
 fn under_goal_on_other_backgrounds(offset: u64) {

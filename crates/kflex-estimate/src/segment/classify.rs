@@ -10,9 +10,11 @@
 //! brightness, so an illumination gain leaves it where it is.
 
 use super::graph;
+use super::regions::Region;
 use super::{Scratch, SegmentParams};
 
-/// Rounds of growing the instrument into the regions that border it (step 4b).
+/// Rounds of growing the instrument into the regions that border it (steps
+/// 4b and 4c, [`grow`]).
 const GROW_ROUNDS: usize = 2;
 
 /// How far from the line through the metal's and the tissue's colours a
@@ -72,6 +74,17 @@ fn brightest(m: [f32; 3]) -> f32 {
 /// cases under a goal from 97 to 95, 0.7 to 96; both relative, so a gain
 /// leaves them alone (an absolute floor lost the darkest frames).
 const BRIGHT_OF_BRIGHTEST: f32 = 0.6;
+
+/// A region's class before the threshold (`Scratch::region_class`): dark
+/// (tissue: lumen, shadow), coloured (sorted by its colour, steps 4–4c) or
+/// clipped (left for step 5); a candidate highlight while step 2 decides.
+const DARK: u8 = 0;
+/// See [`DARK`].
+const COLOURED: u8 = 1;
+/// See [`DARK`].
+const CLIPPED: u8 = 2;
+/// See [`DARK`].
+const CANDIDATE: u8 = 3;
 
 /// Bins of the chromaticity histograms, over `[-1, 1]`.
 const BINS: usize = 512;
@@ -160,6 +173,131 @@ fn near_line(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], width: f32) -> boo
     cross * cross <= width * width * (d[0] * d[0] + d[1] * d[1]).powi(2)
 }
 
+/// Grows the instrument over the merged regions `roots` for up to
+/// [`GROW_ROUNDS`] rounds (steps 4b and 4c): in each round every tissue
+/// region `i` for which `joins(i, instrument)` holds becomes instrument
+/// (`instrument`: 1 instrument, 0 tissue). A region that joins is marked 2,
+/// neither class, until the round ends, so the rule reads every region of
+/// a round against the classes the round began with (the order of the
+/// regions does not matter) and the next round sees it as instrument. Stops
+/// early after a round in which none joined.
+fn grow(roots: &[u32], instrument: &mut [u8], mut joins: impl FnMut(usize, &[u8]) -> bool) {
+    for _ in 0..GROW_ROUNDS {
+        let mut grew = false;
+        for &i in roots {
+            let i = i as usize;
+            if instrument[i] == 0 && joins(i, instrument) {
+                instrument[i] = 2;
+                grew = true;
+            }
+        }
+        instrument
+            .iter_mut()
+            .filter(|v| **v == 2)
+            .for_each(|v| *v = 1);
+        if !grew {
+            break;
+        }
+    }
+}
+
+/// What [`joins_by_neighbours`] reads of the regions' graph.
+struct JoinGraph<'a> {
+    regions: &'a [Region],
+    region_class: &'a [u8],
+    adjacency: &'a [[u32; 2]],
+    adjacency_start: &'a [u32],
+}
+
+/// Least share of a region's cell edges that must border the instrument for
+/// it to join by its neighbours' colours (step 4c): the lit flank of a shaft
+/// or a tinted joint runs along the steel; a patch of wet tissue that
+/// touches it at a corner does not. Chosen on the robustness matrix over six
+/// backgrounds per organ (0.25–0.4 alike; a glint beside the shaft under
+/// gain 1.6 joined with no such bound).
+const JOIN_BORDER_SHARE: f32 = 0.3;
+
+/// Brightest a region may be, as a multiple of the instrument it borders, to
+/// join by its neighbours' colours (step 4c; the dimmest:
+/// `1 / grow_brightness`): a lit flank reads a few per cent brighter than
+/// the steel beside it, tissue's wet sheen much more. Chosen on the
+/// robustness matrix (1.05 left a tinted case and two more white ones
+/// under a goal; 1.1 and 1.15 alike).
+const JOIN_BRIGHTER: f32 = 1.1;
+
+/// Smallest region, px, that joins by its neighbours' colours (step 4c):
+/// one- and two-cell regions in a blurred highlight's rim carry noise, not
+/// colour, and joined one after another along the rim (blur 1.5 px, larynx
+/// −60° at 35 mm: IoU 0.932 → 0.903 with no bound).
+const JOIN_MIN_PX: f32 = 16.0;
+
+/// Step 4c, for region `i`, tissue: whether it joins the instrument by the
+/// colours beside it. It does where it is left to its colour (neither dark
+/// nor clipped: bright regions too), has at least [`JOIN_MIN_PX`] pixels,
+/// borders the instrument along at least [`JOIN_BORDER_SHARE`] of its cell
+/// edges, its chromaticity lies less than
+/// [`SegmentParams::neighbour_ratio`] times as far from the instrument's
+/// beside it as from the tissue's beside it (each the edge-weighted mean of
+/// the neighbouring regions of that class left to their colour; the
+/// frame's tissue colour `tissue` where it borders no such tissue), and its
+/// brightness lies between `1 / grow_brightness` and [`JOIN_BRIGHTER`]
+/// times the instrument's beside it. In the second round the regions
+/// joined in the first count as instrument beside their neighbours: the
+/// instrument grows along itself, as in step 4b. Steps 4 and 4b compare
+/// with the frame's two colours; where the tissue's lies near the metal's
+/// (white, grey) or the steel reflects it, the colours beside a region tell
+/// more.
+fn joins_by_neighbours(
+    g: &JoinGraph,
+    i: usize,
+    instrument: &[u8],
+    tissue: [f32; 2],
+    p: &SegmentParams,
+) -> bool {
+    let r = &g.regions[i];
+    if g.region_class[i] != COLOURED || r.count < JOIN_MIN_PX {
+        return false;
+    }
+    // the instrument's and the tissue's colours (and the instrument's
+    // brightness) over the cell edges they share with it
+    let (mut steel, mut steel_lum, mut steel_edges) = ([0.0f32; 2], 0.0f32, 0u32);
+    let (mut beside, mut beside_edges, mut edges) = ([0.0f32; 2], 0u32, 0u32);
+    for &[o, n] in graph::neighbours(g.adjacency, g.adjacency_start, i) {
+        let (o, w) = (o as usize, n as f32);
+        edges += n;
+        if g.region_class[o] != COLOURED {
+            continue;
+        }
+        let c = g.regions[o].chroma;
+        match instrument[o] {
+            1 => {
+                steel = [steel[0] + w * c[0], steel[1] + w * c[1]];
+                steel_lum += w * g.regions[o].lum;
+                steel_edges += n;
+            }
+            0 => {
+                beside = [beside[0] + w * c[0], beside[1] + w * c[1]];
+                beside_edges += n;
+            }
+            // joined this round: neither class until the round ends
+            _ => {}
+        }
+    }
+    if steel_edges == 0 || (steel_edges as f32) < JOIN_BORDER_SHARE * edges as f32 {
+        return false;
+    }
+    let steel = steel.map(|v| v / steel_edges as f32);
+    let steel_lum = steel_lum / steel_edges as f32;
+    let beside = if beside_edges > 0 {
+        beside.map(|v| v / beside_edges as f32)
+    } else {
+        tissue
+    };
+    dist2(r.chroma, steel) < p.neighbour_ratio * p.neighbour_ratio * dist2(r.chroma, beside)
+        && r.lum <= JOIN_BRIGHTER * steel_lum
+        && r.lum * p.grow_brightness >= steel_lum
+}
+
 /// Sorts every merged region (root of `s.parent`) into instrument or tissue
 /// (`s.instrument`, per region), after building the regions' graph
 /// (`graph::build`):
@@ -175,8 +313,9 @@ fn near_line(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], width: f32) -> boo
 ///    thresholds move down with the mean a clipped channel reads,
 ///    `1 − σ/√(2π)` for the frame's measured σ, staying `CLIP_MARGIN` below
 ///    it and above `CLIP_FLOOR`;
-/// 3. the tissue colour `T` starts at the median chromaticity of the bright
-///    regions on the region of interest's border where they hold more than
+/// 3. the tissue colour `T` starts at the median chromaticity of the
+///    regions left to their colour (neither dark nor clipped) on the region
+///    of interest's border where they hold more than
 ///    60 % of it (the instrument enters from one side, so it holds a
 ///    minority of the border even where its shaft fills the region); else at
 ///    the median chromaticity of the regions whose distance from the metal's
@@ -197,6 +336,11 @@ fn near_line(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], width: f32) -> boo
 ///    the line through them, and is about as bright as the instrument it
 ///    borders ([`SegmentParams::grow_brightness`]; not where `T` lies within
 ///    [`SegmentParams::grow_separation`] of `M`), two rounds;
+///    then (4c) a region that runs along the instrument and is about as
+///    bright joins it where its colour lies less than
+///    [`SegmentParams::neighbour_ratio`] times as far from the steel's
+///    beside it as from the tissue's beside it ([`joins_by_neighbours`]),
+///    two rounds;
 /// 5. a specular region takes the class that borders most of it, but a
 ///    region with a clipped channel whose darkest channel does not clip and
 ///    whose chromaticity lies more than [`SegmentParams::grow_separation`]
@@ -235,15 +379,12 @@ pub(super) fn classify(
     }
     let median_l = brightness.quantile(0.5, 0.0, 3.0);
     let min_l = p.min_relative_value * median_l;
-    // a bright region (held to the stricter rule below, kept out of the
-    // growth) is bright against the frame's brightest regions too: where
+    // a bright region (held to the stricter rule below, kept out of step
+    // 4b's growth) is bright against the frame's brightest regions too: where
     // the dark lumen fills most of the region, its median is the lumen's,
     // and a tinted joint at 35 mm counted as bright by it alone
     let bright_l =
         (p.bright_ratio * median_l).max(BRIGHT_OF_BRIGHTEST * brightness.quantile(0.9, 0.0, 3.0));
-    const DARK: u8 = 0;
-    const BRIGHT: u8 = 1;
-    const CLIPPED: u8 = 2;
     // a channel that clips reads below full scale by the noise clipped
     // with it: the mean of min(1, 1 + n) for n ~ N(0, σ) is 1 − σ/√(2π);
     // where that falls to within `CLIP_MARGIN` of the thresholds, they move
@@ -259,18 +400,17 @@ pub(super) fn classify(
         } else if darkest(m) > clip_value || brightest(m) > saturated_value {
             CLIPPED
         } else {
-            BRIGHT
+            COLOURED
         };
     }
     // highlights: small near-white regions brighter than the median and
     // than what surrounds them are treated as clipped (step 5)
-    const CANDIDATE: u8 = 3;
     if p.highlight_ratio > 0.0 {
         let total: f32 = roots.iter().map(|&i| regions[i as usize].count).sum();
         let mut any = false;
         for &i in roots.iter() {
             let (r, c) = (&regions[i as usize], &mut region_class[i as usize]);
-            if *c == BRIGHT
+            if *c == COLOURED
                 && r.count < p.highlight_max * total
                 && r.lum > median_l
                 && darkest(r.mean) > p.highlight_min_value
@@ -293,17 +433,17 @@ pub(super) fn classify(
                         if edges > 0 && regions[i].lum > p.highlight_ratio * sum / edges as f32 {
                             CLIPPED
                         } else {
-                            BRIGHT
+                            COLOURED
                         };
                 }
             }
         }
     }
-    let bright = || {
+    let coloured = || {
         roots
             .iter()
             .map(|&i| i as usize)
-            .filter(|&i| region_class[i] == BRIGHT)
+            .filter(|&i| region_class[i] == COLOURED)
             .map(|i| &regions[i])
     };
     // the tissue colour starts at the median colour of the regions whose
@@ -312,7 +452,7 @@ pub(super) fn classify(
     // little or most of the region, and not the reddest tenth (red tape, dark
     // vessels); medians, not means, throughout
     let mut far = Histogram::new();
-    for r in bright() {
+    for r in coloured() {
         far.add(
             dist2(r.chroma, p.metal_chroma).sqrt(),
             0.0,
@@ -322,7 +462,7 @@ pub(super) fn classify(
     }
     let (near, farthest) = (far.quantile(0.5, 0.0, 2.0), far.quantile(0.8, 0.0, 2.0));
     let (mut hx, mut hy, mut fallback) = (Histogram::new(), Histogram::new(), [0.0f32; 2]);
-    for r in bright() {
+    for r in coloured() {
         let ch = r.chroma;
         fallback = ch;
         let d = dist2(ch, p.metal_chroma).sqrt();
@@ -349,7 +489,7 @@ pub(super) fn classify(
         let Some(&l) = labels.get(i) else { continue };
         border += 1;
         let root = parent[l as usize] as usize;
-        if region_class[root] == BRIGHT {
+        if region_class[root] == COLOURED {
             let ch = regions[root].chroma;
             bx.add(ch[0], -1.0, 1.0, 1.0);
             by.add(ch[1], -1.0, 1.0, 1.0);
@@ -376,7 +516,7 @@ pub(super) fn classify(
     for round in 0..3 {
         let (mut sum_m, mut n_m) = ([0.0f64; 2], 0.0f64);
         let (mut hx, mut hy) = (Histogram::new(), Histogram::new());
-        for r in bright() {
+        for r in coloured() {
             let ch = r.chroma;
             let w = f64::from(r.count);
             if metal_side(ch, metal, tissue, share(r.lum)) {
@@ -419,7 +559,7 @@ pub(super) fn classify(
         let i = i as usize;
         let ch = regions[i].chroma;
         instrument[i] = u8::from(
-            region_class[i] == BRIGHT && metal_side(ch, metal, tissue, share(regions[i].lum)),
+            region_class[i] == COLOURED && metal_side(ch, metal, tissue, share(regions[i].lum)),
         );
     }
     // 4b: the instrument is one object: a region that borders it and lies
@@ -427,45 +567,42 @@ pub(super) fn classify(
     // (a far gripper or a joint's disc tinted by the tissue it reflects);
     // bright regions keep their stricter rule
     if p.grow_share > 0.5 && dist2(metal, tissue) > p.grow_separation.powi(2) {
-        for _ in 0..GROW_ROUNDS {
-            let mut grew = false;
-            for &i in roots.iter() {
-                let (i, r) = (i as usize, &regions[i as usize]);
-                if region_class[i] != BRIGHT
-                    || instrument[i] != 0
-                    || r.lum > bright_l
-                    || !metal_side(r.chroma, metal, tissue, p.grow_share)
-                    || !near_line(r.chroma, metal, tissue, GROW_WIDTH)
-                {
-                    continue;
-                }
-                // the instrument's brightness over the cell edges it shares
-                // with this region
-                let (mut sum, mut edges) = (0.0f32, 0u32);
-                for &[o, n] in graph::neighbours(adjacency, adjacency_start, i) {
-                    if instrument[o as usize] == 1 {
-                        sum += regions[o as usize].lum * n as f32;
-                        edges += n;
-                    }
-                }
-                let around = sum / edges.max(1) as f32;
-                if edges > 0
-                    && r.lum <= p.grow_brightness * around
-                    && r.lum * p.grow_brightness >= around
-                {
-                    // 2: grown this round (its neighbours see it next round)
-                    instrument[i] = 2;
-                    grew = true;
+        grow(roots, instrument, |i, instrument| {
+            let r = &regions[i];
+            if region_class[i] != COLOURED
+                || r.lum > bright_l
+                || !metal_side(r.chroma, metal, tissue, p.grow_share)
+                || !near_line(r.chroma, metal, tissue, GROW_WIDTH)
+            {
+                return false;
+            }
+            // the instrument's brightness over the cell edges it shares
+            // with this region
+            let (mut sum, mut edges) = (0.0f32, 0u32);
+            for &[o, n] in graph::neighbours(adjacency, adjacency_start, i) {
+                if instrument[o as usize] == 1 {
+                    sum += regions[o as usize].lum * n as f32;
+                    edges += n;
                 }
             }
-            instrument
-                .iter_mut()
-                .filter(|v| **v == 2)
-                .for_each(|v| *v = 1);
-            if !grew {
-                break;
-            }
-        }
+            let around = sum / edges.max(1) as f32;
+            edges > 0 && r.lum <= p.grow_brightness * around && r.lum * p.grow_brightness >= around
+        });
+    }
+    // 4c: steel mirrors what lies around it, so a part of it may lie nearer
+    // the frame's tissue colour than the metal's (a lit flank on white
+    // tissue, a joint tinted by the tissue) and still lie nearer the steel
+    // beside it than the tissue beside it
+    if p.neighbour_ratio > 0.0 {
+        let g = JoinGraph {
+            regions,
+            region_class,
+            adjacency,
+            adjacency_start,
+        };
+        grow(roots, instrument, |i, instrument| {
+            joins_by_neighbours(&g, i, instrument, tissue, p)
+        });
     }
     // 5: clipped regions and highlights take their neighbours' class, by
     // shared cell edges; but one channel clipping leaves a colour, and a

@@ -60,9 +60,12 @@ pub struct SegmentParams {
     /// median does not make a dim part bright) is instrument only where its
     /// chromaticity lies within [`SegmentParams::bright_metal_share`] of the
     /// way from the metal's to the tissue's (other regions: within half the
-    /// way, the nearer class). Bright tissue is pulled toward white by its wet sheen
-    /// and by its red channel clipping, toward the steel's near-neutral
-    /// colour; bright steel is not pulled toward the tissue's.
+    /// way, the nearer class), and is kept out of the growth of
+    /// [`SegmentParams::grow_share`] (not out of that of
+    /// [`SegmentParams::neighbour_ratio`]). Bright tissue is pulled toward
+    /// white by its wet sheen and by its red channel clipping, toward the
+    /// steel's near-neutral colour; bright steel is not pulled toward the
+    /// tissue's.
     pub bright_ratio: f32,
     /// See [`SegmentParams::bright_ratio`].
     pub bright_metal_share: f32,
@@ -81,9 +84,23 @@ pub struct SegmentParams {
     /// channel does not clip, for it to be tissue outright.
     pub grow_separation: f32,
     /// A region grows into the instrument only where it is at most this many
-    /// times as bright as the instrument it borders (a far gripper is no
-    /// brighter than the joint it hangs from; the pale tissue around it is).
+    /// times as bright as the instrument it borders, and at least its
+    /// inverse (a far gripper is no brighter than the joint it hangs from;
+    /// the pale tissue around it is). The growth of
+    /// [`SegmentParams::neighbour_ratio`] takes the same least brightness
+    /// (and a brightest of its own, 1.1 times).
     pub grow_brightness: f32,
+    /// A region that runs along the instrument (0.3 of its cell edges or
+    /// more, see `joins_by_neighbours` in `classify.rs`) joins it where its
+    /// chromaticity lies less than this many times as far from the
+    /// instrument's beside it as from the tissue's beside it, and it is
+    /// about as bright as the instrument there (between
+    /// `1 / grow_brightness` and 1.1 times). Steel mirrors what lies
+    /// around it: a lit flank of the shaft on white tissue, or a joint
+    /// tinted by the tissue, can lie nearer the frame's tissue colour than
+    /// the metal's and still nearer the steel beside it than the tissue
+    /// beside it. At most 1 (nearer the steel); 0 turns this off.
+    pub neighbour_ratio: f32,
     /// Smallest brightness of an instrument region, as a share of the median
     /// brightness of the region of interest (darker is lumen or shadow).
     pub min_relative_value: f32,
@@ -153,6 +170,7 @@ impl Default for SegmentParams {
             grow_share: 0.65,
             grow_separation: 0.08,
             grow_brightness: 1.4,
+            neighbour_ratio: 0.7,
             min_relative_value: 0.15,
             clip_value: 0.94,
             saturated_value: 0.97,
@@ -287,7 +305,11 @@ pub fn segment(
 ///    instrument joins it where it lies a little past half way toward the
 ///    tissue's colour and is about as bright as the steel it borders
 ///    ([`SegmentParams::grow_share`]: a far gripper tinted by the tissue it
-///    reflects); tissue enclosed by instrument is instrument
+///    reflects); a region that runs along the instrument and is about as
+///    bright joins it where its colour lies nearer the steel's beside it
+///    than the tissue's beside it, by [`SegmentParams::neighbour_ratio`] (a
+///    lit flank on white tissue, a joint tinted by the tissue); tissue
+///    enclosed by instrument is instrument
 ///    ([`SegmentParams::fill_holes`]); connected components smaller than
 ///    [`SegmentParams::min_component`] of the region or
 ///    [`SegmentParams::min_component_of_largest`] of the largest component
@@ -402,7 +424,8 @@ impl Segmenter {
     /// outside `[0, 2]`, either `metal_chroma` component outside `[-1, 1]`,
     /// `bright_ratio` outside `[0, 100]`, `bright_metal_share` or
     /// `grow_share` outside `[0, 1]`, `grow_separation` outside `[0, 2]`,
-    /// `grow_brightness` outside `[0, 100]`, `min_relative_value`,
+    /// `grow_brightness` outside `[0, 100]`, `neighbour_ratio` outside
+    /// `[0, 1]`, `min_relative_value`,
     /// `clip_value` or `saturated_value` outside `[0, 1]`,
     /// `highlight_ratio` outside `[0, 100]`, `highlight_max`,
     /// `highlight_min_value`, `min_component` or `min_component_of_largest`
@@ -429,6 +452,7 @@ impl Segmenter {
         check("grow_share", params.grow_share, 0.0, 1.0)?;
         check("grow_separation", params.grow_separation, 0.0, 2.0)?;
         check("grow_brightness", params.grow_brightness, 0.0, 100.0)?;
+        check("neighbour_ratio", params.neighbour_ratio, 0.0, 1.0)?;
         check("min_relative_value", params.min_relative_value, 0.0, 1.0)?;
         check("clip_value", params.clip_value, 0.0, 1.0)?;
         check("saturated_value", params.saturated_value, 0.0, 1.0)?;
@@ -770,9 +794,22 @@ mod tests {
         instrument_to: usize,
         tissue_from: usize,
     ) {
+        let params = SegmentParams::default();
+        assert_instrument_left_with(rgb, w, h, instrument_to, tissue_from, &params);
+    }
+
+    /// [`assert_instrument_left`] with thresholds `params`.
+    fn assert_instrument_left_with(
+        rgb: &[u8],
+        w: usize,
+        h: usize,
+        instrument_to: usize,
+        tissue_from: usize,
+        params: &SegmentParams,
+    ) {
         let (width, height) = (w as u32, h as u32);
         let roi = Roi::whole(width, height);
-        let seg = segment(rgb, width, height, roi, &SegmentParams::default()).unwrap();
+        let seg = segment(rgb, width, height, roi, params).unwrap();
         for (y, row) in seg.full.data().chunks_exact(w).enumerate() {
             let near = &row[instrument_to.saturating_sub(4)..(tissue_from + 4).min(w)];
             assert!(
@@ -835,6 +872,46 @@ mod tests {
             _ => [40.0, 25.0, 22.0],
         });
         assert_instrument_left(&rgb, w, h, 46, 50);
+    }
+
+    #[test]
+    fn a_lit_flank_on_white_tissue_joins_the_steel_beside_it() {
+        // steel, its lit flank (6 % brighter, a third of the way toward the
+        // warm white tissue's colour the frame estimates), warm white
+        // tissue: the tissue's colour lies so near the metal's that the
+        // growth by shares is off, and the flank, bright, is held to the
+        // bright rule (within 0.3 of the way) and would be tissue; it lies
+        // twice as near the steel beside it as the tissue beside it
+        let (w, h) = (160usize, 96usize);
+        let rgb = paint(w, h, 0.01, 11, |x, _| match x {
+            0..32 => [141.0, 143.0, 147.0],
+            32..48 => [153.0, 151.5, 154.5],
+            _ => [120.0, 114.0, 113.0],
+        });
+        assert_instrument_left(&rgb, w, h, 46, 50);
+        // without the step, the flank is tissue
+        let without = SegmentParams {
+            neighbour_ratio: 0.0,
+            ..SegmentParams::default()
+        };
+        assert_instrument_left_with(&rgb, w, h, 30, 34, &without);
+    }
+
+    #[test]
+    fn a_glint_on_white_tissue_beside_the_steel_stays_tissue() {
+        // as above, but the strip beside the steel is 30 % brighter than
+        // it: wet tissue's sheen, near white, so its colour lies nearer the
+        // steel's than the tissue's; too bright for steel beside steel (the
+        // bound of 1.1 times keeps it tissue: step 4 alone would too, so
+        // this guards the bound, not the step). The strip is a tenth of
+        // the frame, far larger than a highlight (`highlight_max`)
+        let (w, h) = (160usize, 96usize);
+        let rgb = paint(w, h, 0.01, 11, |x, _| match x {
+            0..32 => [141.0, 143.0, 147.0],
+            32..48 => [185.0, 184.0, 187.0],
+            _ => [120.0, 114.0, 113.0],
+        });
+        assert_instrument_left(&rgb, w, h, 30, 34);
     }
 
     #[test]

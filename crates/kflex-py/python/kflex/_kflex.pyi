@@ -373,6 +373,7 @@ class SegmentParams(_Params):
     grow_share: float
     grow_separation: float
     grow_brightness: float
+    neighbour_ratio: float
     min_relative_value: float
     clip_value: float
     saturated_value: float
