@@ -874,6 +874,18 @@ mod tests {
         assert_instrument_left(&rgb, w, h, 46, 50);
     }
 
+    /// A 160×96 frame of steel (columns 0–31), a strip of colour `strip`
+    /// (32–47) and warm white tissue, with noise σ 0.01: the frame and its size.
+    fn steel_strip_white_tissue(strip: [f64; 3]) -> (Vec<u8>, usize, usize) {
+        let (w, h) = (160usize, 96usize);
+        let rgb = paint(w, h, 0.01, 11, |x, _| match x {
+            0..32 => [141.0, 143.0, 147.0],
+            32..48 => strip,
+            _ => [120.0, 114.0, 113.0],
+        });
+        (rgb, w, h)
+    }
+
     #[test]
     fn a_lit_flank_on_white_tissue_joins_the_steel_beside_it() {
         // steel, its lit flank (6 % brighter, a third of the way toward the
@@ -882,12 +894,7 @@ mod tests {
         // growth by shares is off, and the flank, bright, is held to the
         // bright rule (within 0.3 of the way) and would be tissue; it lies
         // twice as near the steel beside it as the tissue beside it
-        let (w, h) = (160usize, 96usize);
-        let rgb = paint(w, h, 0.01, 11, |x, _| match x {
-            0..32 => [141.0, 143.0, 147.0],
-            32..48 => [153.0, 151.5, 154.5],
-            _ => [120.0, 114.0, 113.0],
-        });
+        let (rgb, w, h) = steel_strip_white_tissue([153.0, 151.5, 154.5]);
         assert_instrument_left(&rgb, w, h, 46, 50);
         // without the step, the flank is tissue
         let without = SegmentParams {
@@ -905,12 +912,7 @@ mod tests {
         // bound of 1.1 times keeps it tissue: step 4 alone would too, so
         // this guards the bound, not the step). The strip is a tenth of
         // the frame, far larger than a highlight (`highlight_max`)
-        let (w, h) = (160usize, 96usize);
-        let rgb = paint(w, h, 0.01, 11, |x, _| match x {
-            0..32 => [141.0, 143.0, 147.0],
-            32..48 => [185.0, 184.0, 187.0],
-            _ => [120.0, 114.0, 113.0],
-        });
+        let (rgb, w, h) = steel_strip_white_tissue([185.0, 184.0, 187.0]);
         assert_instrument_left(&rgb, w, h, 30, 34);
     }
 
