@@ -284,7 +284,9 @@ pub fn segment(
 ///    a 2×2 cell, so merging and thresholding work on the grid of cells, a
 ///    quarter of the pixels.
 /// 4. **Threshold**, from the frame's own statistics: each merged region's
-///    mean colour is taken to chromaticity (hue and saturation without
+///    mean colour (its dark channels read back through the sensor's
+///    clipping of the noise at 0, which lifts a black channel to
+///    `σ/√(2π)` for the frame's measured σ) is taken to chromaticity (hue and saturation without
 ///    brightness, so a gain leaves it unchanged), and a region is instrument
 ///    where it is nearer the metal's chromaticity ([`SegmentParams::metal_chroma`])
 ///    than the frame's tissue colour, which is estimated from the region of
@@ -884,6 +886,48 @@ mod tests {
             _ => [120.0, 114.0, 113.0],
         });
         (rgb, w, h)
+    }
+
+    #[test]
+    fn a_noisy_dark_lumen_beside_the_steel_stays_tissue() {
+        // steel on the left, a near-black reddish lumen over most of the
+        // region, pink tissue around it (on the region's border), under
+        // noise σ 0.1: the sensor clips the lumen's noise at 0, so it reads
+        // about (0.062, 0.055, 0.055) for (0.039, 0.027, 0.027): a third of
+        // the way from the steel's colour to the tissue's, where its own is
+        // most of the way, and (the region's median being the lumen's) not
+        // dark; read back, it is tissue
+        let (w, h) = (160usize, 96usize);
+        let rgb = paint(w, h, 0.1, 13, |x, y| match (x, y) {
+            (0..32, _) => [150.0, 152.0, 160.0],
+            (32..152, 8..88) => [10.0, 7.0, 7.0],
+            _ => [180.0, 120.0, 115.0],
+        });
+        let (width, height) = (w as u32, h as u32);
+        let seg = segment(
+            &rgb,
+            width,
+            height,
+            Roi::whole(width, height),
+            &SegmentParams::default(),
+        )
+        .unwrap();
+        let found = |xs: std::ops::Range<usize>, ys: std::ops::Range<usize>| -> usize {
+            let rows = seg.full.data().chunks_exact(w);
+            rows.skip(ys.start)
+                .take(ys.len())
+                .map(|row| row[xs.clone()].iter().filter(|&&v| v == 1).count())
+                .sum()
+        };
+        // the lumen's pixels clear of its edges: tissue, but for a few
+        let taken = found(36..148, 12..84);
+        assert!(
+            taken * 100 < 112 * 72,
+            "{taken} lumen pixels taken for steel"
+        );
+        // the steel's: found
+        let steel = found(0..28, 0..h);
+        assert!(steel * 100 > 99 * 28 * h, "{steel} steel pixels found");
     }
 
     #[test]
