@@ -59,9 +59,14 @@ fn clip_thresholds(clip_value: f32, saturated_value: f32, sigma: f32) -> (f32, f
 /// under 10⁻⁵ σ.
 const UNCLIP_BELOW: f32 = 4.0;
 
+/// The highest channel mean read back through the clipping at 0 (step 0 of
+/// [`classify`]): where `UNCLIP_BELOW` σ passes it (σ above 0.125), the
+/// clipping at 1 would matter as well.
+const UNCLIP_MOST: f32 = 0.5;
+
 /// Most Newton steps [`floor_unclipped`] takes (from `m` above black's
 /// `σ/√(2π)` it needs 4 at most to reach 10⁻⁶ σ, over true values 0–4 σ in
-/// double precision; single precision may stall a little short).
+/// double precision).
 const UNCLIP_STEPS: usize = 12;
 
 /// The standard normal density at `z`.
@@ -77,7 +82,7 @@ fn normal_cdf(z: f32) -> f32 {
     let t = 1.0 / (1.0 + 0.327_591_1 * x);
     let poly = t
         * (0.254_829_6
-            + t * (-0.284_496_7 + t * (1.421_413_8 + t * (-1.453_152 + t * 1.061_405_4))));
+            + t * (-0.284_496_7 + t * (1.421_413_7 + t * (-1.453_152 + t * 1.061_405_4))));
     let erf = 1.0 - poly * (-x * x).exp();
     if z >= 0.0 {
         0.5 * (1.0 + erf)
@@ -97,14 +102,15 @@ fn floor_clipped_mean(mu: f32, sigma: f32) -> f32 {
 /// noise `sigma`, clipped at 0 by the sensor, average `m`: the inverse of
 /// [`floor_clipped_mean`], by Newton's method from `m`. The clipped mean is
 /// increasing (its slope `Φ(μ/σ)`) and convex, so the steps fall toward the
-/// root without passing it; they stop where one moves less than 10⁻⁶ σ.
-/// Where `m` is at most what a black channel reads, `σ/√(2π)`, it is 0;
-/// without noise (`sigma` ≤ 0), `m`.
+/// root without passing it; they stop where one moves no more than 10⁻⁶ σ
+/// (or than single precision resolves at the value).
+/// Where `m` is at most what a black channel reads, `σ/√(2π)` (or is not
+/// a number), it is 0; without noise (`sigma` not above 0), `m` (at least 0).
 fn floor_unclipped(m: f32, sigma: f32) -> f32 {
-    if sigma <= 0.0 {
+    if sigma.is_nan() || sigma <= 0.0 {
         return m.max(0.0);
     }
-    if m <= CLIP_NOISE * sigma {
+    if m.is_nan() || m <= CLIP_NOISE * sigma {
         return 0.0;
     }
     let mut mu = m;
@@ -114,7 +120,8 @@ fn floor_unclipped(m: f32, sigma: f32) -> f32 {
         if mu <= 0.0 {
             return 0.0;
         }
-        if step.abs() < 1e-6 * sigma {
+        // 10⁻⁶ σ, or what single precision resolves at `μ`
+        if step.abs() <= (1e-6 * sigma).max(4.0 * f32::EPSILON * mu) {
             break;
         }
     }
@@ -444,14 +451,13 @@ pub(super) fn classify(
         adjacency_start,
         ..
     } = s;
-    // 1–3: the frame's statistics
     // the merged regions, once: every loop below runs over them, not the leaves
     roots.clear();
     roots.extend((0..parent.len() as u32).filter(|&i| parent[i as usize] == i));
     // 0: a dark channel's mean, lifted by the noise the sensor clips at 0,
     // back to the value that reads so
     if sigma > 0.0 {
-        let below = UNCLIP_BELOW * sigma;
+        let below = (UNCLIP_BELOW * sigma).min(UNCLIP_MOST);
         for &i in roots.iter() {
             let r = &mut regions[i as usize];
             if r.mean.iter().any(|&c| c < below) {
@@ -466,6 +472,7 @@ pub(super) fn classify(
             }
         }
     }
+    // 1–3: the frame's statistics
     let mut brightness = Histogram::new();
     for &i in roots.iter() {
         let r = &regions[i as usize];
@@ -764,6 +771,7 @@ mod tests {
     /// clipped mean read back over the range a dark channel takes.
     #[test]
     fn a_floor_clipped_mean_reads_back_to_its_value() {
+        const TOLERANCE: f32 = 1e-5;
         for (z, cdf) in [
             (0.0, 0.5),
             (1.0, 0.841_344_7),
@@ -772,20 +780,29 @@ mod tests {
         ] {
             assert!((normal_cdf(z) - cdf).abs() < 1e-6, "Φ({z})");
         }
-        let sigma = 0.1;
         // black reads σ/√(2π); far above the floor, the value itself
-        assert!((floor_clipped_mean(0.0, sigma) - 0.039_894_2).abs() < 1e-6);
-        assert!((floor_clipped_mean(0.6, sigma) - 0.6).abs() < 1e-6);
-        for k in 0..=40 {
-            let mu = k as f32 * 0.01; // 0 to 4σ
-            let m = floor_clipped_mean(mu, sigma);
-            assert!(m >= mu, "μ {mu}: {m}");
-            let back = floor_unclipped(m, sigma);
-            assert!((back - mu).abs() < 1e-4, "μ {mu}: read {m}, back {back}");
+        assert!((floor_clipped_mean(0.0, 0.1) - 0.039_894_2).abs() < 1e-6);
+        assert!((floor_clipped_mean(0.6, 0.1) - 0.6).abs() < 1e-6);
+        for sigma in [0.1f32, 0.01, 0.004] {
+            for k in 0..=40 {
+                let mu = k as f32 * 0.1 * sigma; // 0 to 4σ
+                let m = floor_clipped_mean(mu, sigma);
+                assert!(m >= mu, "σ {sigma}, μ {mu}: {m}");
+                let back = floor_unclipped(m, sigma);
+                assert!(
+                    (back - mu).abs() <= TOLERANCE * sigma,
+                    "σ {sigma}, μ {mu}: read {m}, back {back}"
+                );
+            }
         }
-        // what no value reads (below black's mean) is black; no noise: as read
-        assert_eq!(floor_unclipped(0.01, sigma), 0.0);
+        // what no value reads (below black's mean, or not a number) is
+        // black; without noise, as read
+        assert_eq!(floor_unclipped(0.01, 0.1), 0.0);
+        assert_eq!(floor_unclipped(-0.2, 0.1), 0.0);
+        assert_eq!(floor_unclipped(f32::NAN, 0.1), 0.0);
         assert_eq!(floor_unclipped(0.2, 0.0), 0.2);
+        assert_eq!(floor_unclipped(0.2, f32::NAN), 0.2);
+        assert_eq!(floor_unclipped(-0.2, 0.0), 0.0);
     }
 
     #[test]

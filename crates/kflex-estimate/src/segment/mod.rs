@@ -284,9 +284,9 @@ pub fn segment(
 ///    a 2×2 cell, so merging and thresholding work on the grid of cells, a
 ///    quarter of the pixels.
 /// 4. **Threshold**, from the frame's own statistics: each merged region's
-///    mean colour (its dark channels read back through the sensor's
-///    clipping of the noise at 0, which lifts a black channel to
-///    `σ/√(2π)` for the frame's measured σ) is taken to chromaticity (hue and saturation without
+///    mean colour (its channels under 4 σ read back through the sensor's
+///    clipping of the noise at 0, which lifts a black channel to `σ/√(2π)`
+///    for the frame's measured σ) is taken to chromaticity (hue and saturation without
 ///    brightness, so a gain leaves it unchanged), and a region is instrument
 ///    where it is nearer the metal's chromaticity ([`SegmentParams::metal_chroma`])
 ///    than the frame's tissue colour, which is estimated from the region of
@@ -365,6 +365,9 @@ struct Scratch {
     wide: Vec<i64>,
     stack: Vec<(usize, usize, usize)>,
     labels: Vec<u32>,
+    /// The split's leaves, then the merged regions (their roots in
+    /// `parent`); the threshold reads the roots' dark channels back through
+    /// the sensor's clipping (see [`Region`]).
     regions: Vec<Region>,
     parent: Vec<u32>,
     instrument: Vec<u8>,
@@ -893,14 +896,18 @@ mod tests {
         // steel on the left, a near-black reddish lumen over most of the
         // region, pink tissue around it (on the region's border), under
         // noise σ 0.1: the sensor clips the lumen's noise at 0, so it reads
-        // about (0.062, 0.055, 0.055) for (0.039, 0.027, 0.027): a third of
-        // the way from the steel's colour to the tissue's, where its own is
-        // most of the way, and (the region's median being the lumen's) not
-        // dark; read back, it is tissue
+        // about (0.065, 0.055, 0.055) for (0.043, 0.027, 0.027): 0.42 of the
+        // way from the steel's colour to the tissue's, where its own is 0.8
+        // of the way, and (the region's median being the lumen's) not dark.
+        // The frame's noise measures 0.074 (the clipping shrinks the
+        // differences it reads), so the lumen reads back short, to about
+        // (0.055, 0.042, 0.042), 0.65 of the way: tissue. Without the
+        // read-back (`UNCLIP_BELOW` 0) all 8,064 lumen pixels asserted on
+        // were steel.
         let (w, h) = (160usize, 96usize);
         let rgb = paint(w, h, 0.1, 13, |x, y| match (x, y) {
             (0..32, _) => [150.0, 152.0, 160.0],
-            (32..152, 8..88) => [10.0, 7.0, 7.0],
+            (32..152, 8..88) => [11.0, 7.0, 7.0],
             _ => [180.0, 120.0, 115.0],
         });
         let (width, height) = (w as u32, h as u32);

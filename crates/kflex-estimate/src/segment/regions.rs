@@ -5,6 +5,9 @@ use super::classify::chroma;
 use super::{Scratch, SegmentParams};
 
 /// A leaf of the split, later a merged region: mean colour on [0, 1] and pixels.
+/// From the threshold on, a merged region's mean is the one its readings
+/// stand for: its dark channels read back through the sensor's clipping of
+/// the noise at 0 (step 0 in `classify.rs`).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Region {
     pub(super) mean: [f32; 3],
