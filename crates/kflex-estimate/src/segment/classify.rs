@@ -150,6 +150,23 @@ fn brightest(m: [f32; 3]) -> f32 {
 /// leaves them alone (an absolute floor lost the darkest frames).
 const BRIGHT_OF_BRIGHTEST: f32 = 0.6;
 
+/// Step 5: a region with a clipped channel (its darkest not clipped) is
+/// tissue where its colour lies more than this share of the way from the
+/// metal's colour to the tissue's (and the tissue's colour lies more than
+/// [`SegmentParams::grow_separation`] from the metal's: a colour at all).
+/// Clipping lowers the channel that is brightest, so it pulls a colour
+/// toward neutral, the metal's side, and never past it: the colour the
+/// region reads is at most as far toward the tissue's as its own. Steel
+/// tinted by the tissue it reflects lies at most the tint's share of the
+/// way, 0.25 at the goal's tint. Clipped pinkish-white sheen on the tissue
+/// beside the tip reads about 0.4–0.5 of the way yet within 0.08 of the
+/// metal's colour, where the earlier rule (past half way and more than
+/// `grow_separation` from the metal's) left it to its neighbours' votes,
+/// the steel's (gain 1.6, larynx 0° at 35 mm, offset 300: 0.830 / 0.688).
+/// Over six backgrounds per organ any share from 0.2 to 0.3 gave the same
+/// cases under a goal (76); 0.4 gave 77.
+const CLIPPED_TISSUE_SHARE: f32 = 0.3;
+
 /// A region's class before the threshold (`Scratch::region_class`): dark
 /// (tissue: lumen, shadow), coloured (sorted by its colour, steps 4–4c) or
 /// clipped (left for step 5); a candidate highlight while step 2 decides.
@@ -426,9 +443,12 @@ fn joins_by_neighbours(
 ///    two rounds;
 /// 5. a specular region takes the class that borders most of it, but a
 ///    region with a clipped channel whose darkest channel does not clip and
-///    whose chromaticity lies more than [`SegmentParams::grow_separation`]
-///    from `M` and nearer `T` is tissue: one clipped channel leaves a
-///    colour, and steel that clips is white (where noise lowers the
+///    whose chromaticity lies more than [`CLIPPED_TISSUE_SHARE`] of the way
+///    from `M` to `T` is tissue (where `T` lies more than
+///    [`SegmentParams::grow_separation`] from `M`): one clipped channel
+///    leaves a colour, pulled toward neutral, and steel that clips is white
+///    (a pinkish-white sheen beside the tip, 0.4 of the way, took the
+///    steel's class from its neighbours at gain 1.6; where noise lowers the
 ///    thresholds, bright pink tissue beside the tip, bordered mostly by
 ///    other clipped tissue, took the instrument's class from the few
 ///    regions around it that were not clipped).
@@ -707,8 +727,8 @@ pub(super) fn classify(
     }
     // 5: clipped regions and highlights take their neighbours' class, by
     // shared cell edges; but one channel clipping leaves a colour, and a
-    // region whose colour lies clearly off the metal's, on the tissue's
-    // side, is tissue (steel that clips is white; tissue among other
+    // region whose colour lies more than `CLIPPED_TISSUE_SHARE` of the way
+    // toward the tissue's is tissue (steel that clips is white; tissue among other
     // clipped tissue would take the class of the few regions it borders
     // that are not clipped, the instrument's where it hangs beside it)
     for &i in roots.iter() {
@@ -717,8 +737,8 @@ pub(super) fn classify(
             let r = &regions[i];
             if brightest(r.mean) > saturated_value
                 && darkest(r.mean) <= clip_value
-                && dist2(r.chroma, metal) > p.grow_separation.powi(2)
-                && !metal_side(r.chroma, metal, tissue, 0.5)
+                && dist2(tissue, metal) > p.grow_separation.powi(2)
+                && !metal_side(r.chroma, metal, tissue, CLIPPED_TISSUE_SHARE)
             {
                 instrument[i] = 0;
                 continue;

@@ -80,8 +80,11 @@ pub struct SegmentParams {
     /// grey, pale or white tissue a share of the way is within the noise.
     /// Also how far from the metal's a region left for the specular step
     /// (a clipped channel) must lie for its colour to count toward the
-    /// tissue's, and, where it lies on the tissue's side and its darkest
-    /// channel does not clip, for it to be tissue outright.
+    /// tissue's, and how far the tissue's must lie for such a region
+    /// (its darkest channel not clipped) to be tissue outright where its
+    /// colour lies more than 0.3 of the way from the metal's to the
+    /// tissue's (steel tinted by the tissue lies at most the tint's share of
+    /// the way; clipping only pulls a colour toward neutral).
     pub grow_separation: f32,
     /// A region grows into the instrument only where it is at most this many
     /// times as bright as the instrument it borders, and at least its
@@ -114,8 +117,9 @@ pub struct SegmentParams {
     /// chromaticity to the sensor's clipping (bright tissue under a high
     /// gain turns pale) and takes the class of the regions around it too,
     /// unless its darkest channel does not clip and its chromaticity lies
-    /// more than [`SegmentParams::grow_separation`] from the metal's, on the
-    /// tissue's side: then it is tissue (steel that clips is white).
+    /// more than 0.3 of the way from the metal's to the tissue's (where
+    /// those lie more than [`SegmentParams::grow_separation`] apart): then
+    /// it is tissue (steel that clips is white).
     pub saturated_value: f32,
     /// A region brighter than the region of interest's median and than the
     /// mean of its neighbours by this factor, and smaller than
@@ -298,7 +302,9 @@ pub fn segment(
 ///    ([`SegmentParams::saturated_value`]) and small highlights
 ///    ([`SegmentParams::highlight_ratio`]) take the class of the regions
 ///    around them, except a region with a clipped channel but an
-///    unclipped darkest one whose colour lies clearly on the tissue's side,
+///    unclipped darkest one whose colour lies more than 0.3 of the way from
+///    the metal's to the tissue's (clipping pulls a colour toward neutral;
+///    steel tinted by the tissue lies at most the tint's share of the way),
 ///    which is tissue. A frame of one colour has nothing to tell apart and finds no
 ///    instrument, whatever the colour.
 ///    Tape is red, so a taped part is lost, as in the paper.
@@ -843,6 +849,50 @@ mod tests {
             _ => [200.0, 110.0, 100.0],
         });
         assert_instrument_left(&rgb, w, h, 44, 52);
+    }
+
+    /// A 208×96 frame, noise σ 0.01: steel (columns 0–47), a sheen
+    /// `sheen` whose red channel clips (48–79), pale tissue whose red
+    /// channel clips too (80–111) and pink tissue (112–207). The steel is
+    /// the only region beside the sheen that is not clipped, so the sheen
+    /// takes the steel's class unless its own colour decides it.
+    fn steel_clipped_sheen_pink_tissue(sheen: [f64; 3]) -> (Vec<u8>, usize, usize) {
+        let (w, h) = (208usize, 96usize);
+        let rgb = paint(w, h, 0.01, 12, |x, _| match x {
+            0..48 => [150.0, 152.0, 160.0],
+            48..80 => sheen,
+            80..112 => [255.0, 240.0, 236.0],
+            _ => [200.0, 130.0, 120.0],
+        });
+        (rgb, w, h)
+    }
+
+    #[test]
+    fn a_clipped_sheen_past_the_tints_share_is_tissue() {
+        // the sheen's colour lies 0.39 of the way from the metal's to the
+        // tissue's but only 0.070 from the metal's (within
+        // `grow_separation`): clipping pulls a colour toward neutral, and
+        // steel tinted by the tissue lies at most the tint's share of the
+        // way, so it is tissue (under the rule before, past half way and
+        // more than `grow_separation` from the metal's, it took the steel's
+        // class: gain 1.6, larynx 0 deg at 35 mm)
+        let (rgb, w, h) = steel_clipped_sheen_pink_tissue([255.0, 220.0, 212.0]);
+        assert_instrument_left(&rgb, w, h, 44, 52);
+    }
+
+    #[test]
+    fn a_clipped_sheen_within_the_tints_share_stays_steel() {
+        // a sheen at the steel's edge beside pink tissue, its red channel
+        // clipped, 0.24 of the way from the metal's colour to the tissue's
+        // (what steel tinted 25 % by this tissue reads at most): it takes
+        // the class of the regions around it, mostly steel
+        let (w, h) = (208usize, 96usize);
+        let rgb = paint(w, h, 0.01, 6, |x, y| match (x, y) {
+            (40..56, 32..64) => [255.0, 235.0, 230.0],
+            (0..56, _) => [150.0, 152.0, 160.0],
+            _ => [200.0, 130.0, 120.0],
+        });
+        assert_instrument_left(&rgb, w, h, 52, 60);
     }
 
     #[test]
