@@ -21,7 +21,7 @@ use matrix::{Bench, Condition, cases};
 const BOUNDS: [(Condition, f64, f64); 12] = [
     (Condition::Baseline, 0.90, 0.85),                  // 0.958 / 0.914
     (Condition::Gain(0.4), 0.90, 0.85),                 // 0.928 / 0.898
-    (Condition::Gain(1.6), 0.90, 0.85),                 // 0.946 / 0.914
+    (Condition::Gain(1.6), 0.90, 0.85),                 // 0.958 / 0.914
     (Condition::Noise(0.1), 0.90, 0.85),                // 0.910 / 0.855
     (Condition::Blur(3.0), 0.89, 0.82), // BELOW GOAL: 0.891 / 0.821 (median 0.946 / 0.924)
     (Condition::Tint(0.25), 0.90, 0.85), // 0.964 / 0.927
@@ -114,7 +114,7 @@ fn no_instrument_only_when_there_is_none() {
 /// to it. As measured; goal 0 for each.
 const MOST_UNDER_GOAL: [(u64, [usize; 16]); 3] = [
     (100, [0, 0, 0, 2, 6, 0, 0, 5, 0, 4, 0, 0, 0, 0, 0, 0]),
-    (200, [0, 0, 1, 1, 5, 0, 0, 7, 1, 3, 0, 0, 0, 0, 0, 0]),
+    (200, [0, 0, 1, 1, 5, 0, 0, 7, 0, 3, 0, 0, 0, 0, 0, 0]),
     (300, [0, 0, 1, 1, 4, 0, 0, 2, 0, 2, 0, 0, 0, 0, 0, 0]),
 ];
 

@@ -164,12 +164,14 @@ const BRIGHT_OF_BRIGHTEST: f32 = 0.6;
 /// `grow_separation` from the metal's) left it to its neighbours' votes,
 /// the steel's (gain 1.6, larynx 0° at 35 mm, offset 300: 0.830 / 0.688).
 /// Over six backgrounds per organ any share from 0.2 to 0.3 gave the same
-/// cases under a goal (76); 0.4 gave 77.
+/// cases under a goal (76, before the clipped tissue voted); 0.4 gave 77.
 const CLIPPED_TISSUE_SHARE: f32 = 0.3;
 
 /// A region's class before the threshold (`Scratch::region_class`): dark
 /// (tissue: lumen, shadow), coloured (sorted by its colour, steps 4–4c) or
-/// clipped (left for step 5); a candidate highlight while step 2 decides.
+/// clipped (left for step 5); a candidate highlight while step 2 decides;
+/// clipped tissue, once step 5 has found a clipped region's colour on the
+/// tissue's side (it then votes as tissue on the other clipped regions).
 const DARK: u8 = 0;
 /// See [`DARK`].
 const COLOURED: u8 = 1;
@@ -177,6 +179,8 @@ const COLOURED: u8 = 1;
 const CLIPPED: u8 = 2;
 /// See [`DARK`].
 const CANDIDATE: u8 = 3;
+/// See [`DARK`].
+const CLIPPED_TISSUE: u8 = 4;
 
 /// Bins of the chromaticity histograms, over `[-1, 1]`.
 const BINS: usize = 512;
@@ -441,17 +445,20 @@ fn joins_by_neighbours(
 ///    [`SegmentParams::neighbour_ratio`] times as far from the steel's
 ///    beside it as from the tissue's beside it ([`joins_by_neighbours`]),
 ///    two rounds;
-/// 5. a specular region takes the class that borders most of it, but a
-///    region with a clipped channel whose darkest channel does not clip and
-///    whose chromaticity lies more than [`CLIPPED_TISSUE_SHARE`] of the way
-///    from `M` to `T` is tissue (where `T` lies more than
+/// 5. a region with a clipped channel whose darkest channel does not clip
+///    and whose chromaticity lies more than [`CLIPPED_TISSUE_SHARE`] of the
+///    way from `M` to `T` is tissue (where `T` lies more than
 ///    [`SegmentParams::grow_separation`] from `M`): one clipped channel
 ///    leaves a colour, pulled toward neutral, and steel that clips is white
 ///    (a pinkish-white sheen beside the tip, 0.4 of the way, took the
 ///    steel's class from its neighbours at gain 1.6; where noise lowers the
 ///    thresholds, bright pink tissue beside the tip, bordered mostly by
 ///    other clipped tissue, took the instrument's class from the few
-///    regions around it that were not clipped).
+///    regions around it that were not clipped); then every other specular
+///    region takes the class that borders most of it, over the regions
+///    that are not clipped and the clipped tissue just found (a white glare
+///    beside the gripper, bordered by clipped pink tissue, took the
+///    gripper's class when that tissue had no vote).
 pub(super) fn classify(
     s: &mut Scratch,
     p: &SegmentParams,
@@ -725,24 +732,29 @@ pub(super) fn classify(
             joins_by_neighbours(&g, i, instrument, tissue, p)
         });
     }
-    // 5: clipped regions and highlights take their neighbours' class, by
-    // shared cell edges; but one channel clipping leaves a colour, and a
-    // region whose colour lies more than `CLIPPED_TISSUE_SHARE` of the way
-    // toward the tissue's is tissue (steel that clips is white; tissue among other
-    // clipped tissue would take the class of the few regions it borders
-    // that are not clipped, the instrument's where it hangs beside it)
+    // 5: one channel clipping leaves a colour, and a region whose colour
+    // lies more than `CLIPPED_TISSUE_SHARE` of the way toward the tissue's
+    // is tissue (steel that clips is white); then the other clipped regions
+    // and highlights take their neighbours' class, by shared cell edges,
+    // the clipped tissue of the first pass voting as tissue (a white glare
+    // beside the tip, bordered by clipped pink tissue and the gripper,
+    // took the gripper's class from the only neighbour left to vote)
+    for &i in roots.iter() {
+        let i = i as usize;
+        let r = &regions[i];
+        if region_class[i] == CLIPPED
+            && brightest(r.mean) > saturated_value
+            && darkest(r.mean) <= clip_value
+            && dist2(tissue, metal) > p.grow_separation.powi(2)
+            && !metal_side(r.chroma, metal, tissue, CLIPPED_TISSUE_SHARE)
+        {
+            instrument[i] = 0;
+            region_class[i] = CLIPPED_TISSUE;
+        }
+    }
     for &i in roots.iter() {
         let i = i as usize;
         if region_class[i] == CLIPPED {
-            let r = &regions[i];
-            if brightest(r.mean) > saturated_value
-                && darkest(r.mean) <= clip_value
-                && dist2(tissue, metal) > p.grow_separation.powi(2)
-                && !metal_side(r.chroma, metal, tissue, CLIPPED_TISSUE_SHARE)
-            {
-                instrument[i] = 0;
-                continue;
-            }
             let mut votes = [0u32; 2];
             for &[o, n] in graph::neighbours(adjacency, adjacency_start, i) {
                 if region_class[o as usize] != CLIPPED {

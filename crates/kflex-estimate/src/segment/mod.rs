@@ -881,6 +881,24 @@ mod tests {
     }
 
     #[test]
+    fn a_white_glare_beside_the_steel_among_clipped_tissue_is_tissue() {
+        // a glare clipped white in every channel (rows 24–71 of columns
+        // 48–79) borders the steel on its left and, on its other three
+        // sides, pink tissue whose red channel clips (columns 48–111): that
+        // tissue's colour makes it tissue, and it votes so on the glare,
+        // which borders it along 112 px and the steel along 48 (when only
+        // regions that are not clipped voted, the steel alone did)
+        let (w, h) = (208usize, 96usize);
+        let rgb = paint(w, h, 0.01, 13, |x, y| match (x, y) {
+            (0..48, _) => [150.0, 152.0, 160.0],
+            (48..80, 24..72) => [255.0, 255.0, 255.0],
+            (48..112, _) => [255.0, 200.0, 185.0],
+            _ => [200.0, 130.0, 120.0],
+        });
+        assert_instrument_left(&rgb, w, h, 44, 52);
+    }
+
+    #[test]
     fn a_clipped_sheen_within_the_tints_share_stays_steel() {
         // a sheen at the steel's edge beside pink tissue, its red channel
         // clipped, 0.24 of the way from the metal's colour to the tissue's
