@@ -151,20 +151,30 @@ fn brightest(m: [f32; 3]) -> f32 {
 const BRIGHT_OF_BRIGHTEST: f32 = 0.6;
 
 /// Step 5: a region with a clipped channel (its darkest not clipped) is
-/// tissue where its colour lies more than this share of the way from the
-/// metal's colour to the tissue's (and the tissue's colour lies more than
-/// [`SegmentParams::grow_separation`] from the metal's: a colour at all).
-/// Clipping lowers the channel that is brightest, so it pulls a colour
-/// toward neutral, the metal's side, and never past it: the colour the
-/// region reads is at most as far toward the tissue's as its own. Steel
-/// tinted by the tissue it reflects lies at most the tint's share of the
-/// way, 0.25 at the goal's tint. Clipped pinkish-white sheen on the tissue
-/// beside the tip reads about 0.4–0.5 of the way yet within 0.08 of the
-/// metal's colour, where the earlier rule (past half way and more than
-/// `grow_separation` from the metal's) left it to its neighbours' votes,
-/// the steel's (gain 1.6, larynx 0° at 35 mm, offset 300: 0.830 / 0.688).
-/// Over six backgrounds per organ any share from 0.2 to 0.3 gave the same
-/// cases under a goal (76, before the clipped tissue voted); 0.4 gave 77.
+/// tissue where its colour lies at least this share of the way from the
+/// metal's colour to the tissue's, provided the tissue's colour lies more
+/// than [`SegmentParams::grow_separation`] from the metal's (a colour at
+/// all) and the region's more than half that (within it a share of so
+/// short a way is the steel's own colour). Clipping lowers the channel
+/// that is brightest, so it pulls a colour toward neutral, the metal's
+/// side, and never past it: the colour the region reads is at most as far
+/// toward the tissue's as its own. Steel tinted by the tissue lies at most
+/// the tint's share of the way, 0.25 at the goal's tint (steel 25 % of the
+/// way to pink tissue in RGB reads 0.23 of the way). Clipped pinkish-white
+/// sheen beside the tip read 0.49 of the way and 0.082 from the metal's
+/// colour (gain 1.6, larynx 0° at 35 mm, offset 300: 0.830 / 0.688), and
+/// 0.066 from it at offset 100 (0.850 / 0.723): the earlier rule (past half
+/// way, and more than `grow_separation` from the metal's) missed the first
+/// for its share and the second for its distance and left both to their
+/// neighbours' votes, the steel's. Over six backgrounds per organ any
+/// share from 0.2 to 0.3 gave the same cases under a goal (76, before the
+/// clipped tissue voted); 0.4 gave 77. It is also
+/// [`SegmentParams::bright_metal_share`]'s default: a bright region that
+/// is not clipped is tissue from the same share of the way.
+///
+/// The tissue colour's estimate (step 4's rounds) counts a clipped region's
+/// colour by a different test, its distance from the metal's alone: the
+/// share needs the tissue's colour, which that estimate is finding.
 const CLIPPED_TISSUE_SHARE: f32 = 0.3;
 
 /// A region's class before the threshold (`Scratch::region_class`): dark
@@ -446,11 +456,12 @@ fn joins_by_neighbours(
 ///    beside it as from the tissue's beside it ([`joins_by_neighbours`]),
 ///    two rounds;
 /// 5. a region with a clipped channel whose darkest channel does not clip
-///    and whose chromaticity lies more than [`CLIPPED_TISSUE_SHARE`] of the
+///    and whose chromaticity lies at least [`CLIPPED_TISSUE_SHARE`] of the
 ///    way from `M` to `T` is tissue (where `T` lies more than
-///    [`SegmentParams::grow_separation`] from `M`): one clipped channel
+///    [`SegmentParams::grow_separation`] from `M`, and the region more than
+///    half that): one clipped channel
 ///    leaves a colour, pulled toward neutral, and steel that clips is white
-///    (a pinkish-white sheen beside the tip, 0.4 of the way, took the
+///    (a pinkish-white sheen beside the tip, 0.49 of the way, took the
 ///    steel's class from its neighbours at gain 1.6; where noise lowers the
 ///    thresholds, bright pink tissue beside the tip, bordered mostly by
 ///    other clipped tissue, took the instrument's class from the few
@@ -663,9 +674,11 @@ pub(super) fn classify(
             break;
         }
         // tissue whose brightest channel clips keeps a colour (steel that
-        // clips is white): where it lies clearly off the metal's it is
-        // tissue, and its colour counts; the clipped channel pulls it toward
-        // neutral, so it is paler than the tissue, never the metal's
+        // clips is white): where it lies more than `grow_separation` off the
+        // metal's, its colour counts toward the tissue's (step 5 decides its
+        // class by its share of the way, `CLIPPED_TISSUE_SHARE`); the clipped
+        // channel pulls it toward neutral, so it is paler than the tissue,
+        // never the metal's
         for &i in roots.iter() {
             let r = &regions[i as usize];
             if region_class[i as usize] == CLIPPED
@@ -732,9 +745,11 @@ pub(super) fn classify(
             joins_by_neighbours(&g, i, instrument, tissue, p)
         });
     }
-    // 5: one channel clipping leaves a colour, and a region whose colour
-    // lies more than `CLIPPED_TISSUE_SHARE` of the way toward the tissue's
-    // is tissue (steel that clips is white); then the other clipped regions
+    // 5: one channel clipping leaves a colour, and a region (its darkest
+    // channel not clipped) whose colour lies at least `CLIPPED_TISSUE_SHARE`
+    // of the way toward the tissue's is tissue, where the tissue's colour
+    // lies more than `grow_separation` from the metal's and the region's
+    // more than half that (steel that clips is white); then the other clipped regions
     // and highlights take their neighbours' class, by shared cell edges,
     // the clipped tissue of the first pass voting as tissue (a white glare
     // beside the tip, bordered by clipped pink tissue and the gripper,
@@ -746,6 +761,7 @@ pub(super) fn classify(
             && brightest(r.mean) > saturated_value
             && darkest(r.mean) <= clip_value
             && dist2(tissue, metal) > p.grow_separation.powi(2)
+            && dist2(r.chroma, metal) > (0.5 * p.grow_separation).powi(2)
             && !metal_side(r.chroma, metal, tissue, CLIPPED_TISSUE_SHARE)
         {
             instrument[i] = 0;

@@ -80,11 +80,12 @@ pub struct SegmentParams {
     /// grey, pale or white tissue a share of the way is within the noise.
     /// Also how far from the metal's a region left for the specular step
     /// (a clipped channel) must lie for its colour to count toward the
-    /// tissue's, and how far the tissue's must lie for such a region
-    /// (its darkest channel not clipped) to be tissue outright where its
-    /// colour lies more than 0.3 of the way from the metal's to the
-    /// tissue's (steel tinted by the tissue lies at most the tint's share of
-    /// the way; clipping only pulls a colour toward neutral).
+    /// tissue's; and, in step 5, how far the tissue's colour must lie from
+    /// the metal's (and such a region's, half this) for the region's own
+    /// colour to decide it: tissue at 0.3 of the way from the metal's to the
+    /// tissue's or more (`CLIPPED_TISSUE_SHARE` in `classify.rs`: steel
+    /// tinted by the tissue lies at most the tint's share of the way, and
+    /// clipping only pulls a colour toward neutral).
     pub grow_separation: f32,
     /// A region grows into the instrument only where it is at most this many
     /// times as bright as the instrument it borders, and at least its
@@ -117,9 +118,10 @@ pub struct SegmentParams {
     /// chromaticity to the sensor's clipping (bright tissue under a high
     /// gain turns pale) and takes the class of the regions around it too,
     /// unless its darkest channel does not clip and its chromaticity lies
-    /// more than 0.3 of the way from the metal's to the tissue's (where
-    /// those lie more than [`SegmentParams::grow_separation`] apart): then
-    /// it is tissue (steel that clips is white).
+    /// at least 0.3 of the way from the metal's to the tissue's
+    /// (`CLIPPED_TISSUE_SHARE` in `classify.rs`; where those lie more than
+    /// [`SegmentParams::grow_separation`] apart, and it more than half that
+    /// from the metal's): then it is tissue (steel that clips is white).
     pub saturated_value: f32,
     /// A region brighter than the region of interest's median and than the
     /// mean of its neighbours by this factor, and smaller than
@@ -301,11 +303,12 @@ pub fn segment(
 ///    [`SegmentParams::clip_value`]), regions with a clipped channel
 ///    ([`SegmentParams::saturated_value`]) and small highlights
 ///    ([`SegmentParams::highlight_ratio`]) take the class of the regions
-///    around them, except a region with a clipped channel but an
-///    unclipped darkest one whose colour lies more than 0.3 of the way from
-///    the metal's to the tissue's (clipping pulls a colour toward neutral;
-///    steel tinted by the tissue lies at most the tint's share of the way),
-///    which is tissue. A frame of one colour has nothing to tell apart and finds no
+///    around them (the clipped tissue below voting as tissue), except a
+///    region with a clipped channel but an unclipped darkest one whose
+///    colour lies at least 0.3 of the way from the metal's to the tissue's
+///    where those differ by more than [`SegmentParams::grow_separation`]
+///    (clipping pulls a colour toward neutral; steel tinted by the tissue
+///    lies at most the tint's share of the way), which is tissue. A frame of one colour has nothing to tell apart and finds no
 ///    instrument, whatever the colour.
 ///    Tape is red, so a taped part is lost, as in the paper.
 /// 5. **The instrument is one object**, on the graph of the merged regions
@@ -869,8 +872,8 @@ mod tests {
 
     #[test]
     fn a_clipped_sheen_past_the_tints_share_is_tissue() {
-        // the sheen's colour lies 0.39 of the way from the metal's to the
-        // tissue's but only 0.070 from the metal's (within
+        // the sheen's colour lies 0.38 of the way from the metal's to the
+        // tissue's but only 0.069 from the metal's (within
         // `grow_separation`): clipping pulls a colour toward neutral, and
         // steel tinted by the tissue lies at most the tint's share of the
         // way, so it is tissue (under the rule before, past half way and
@@ -878,6 +881,24 @@ mod tests {
         // class: gain 1.6, larynx 0 deg at 35 mm)
         let (rgb, w, h) = steel_clipped_sheen_pink_tissue([255.0, 220.0, 212.0]);
         assert_instrument_left(&rgb, w, h, 44, 52);
+    }
+
+    #[test]
+    fn a_clipped_sheen_near_the_metals_colour_stays_steel() {
+        // pale warm tissue 0.086 from the metal's colour (just past
+        // `grow_separation`, so step 5's colour rule is on) and a sheen at
+        // the steel's edge, its red channel clipped, 0.38 of the way toward
+        // the tissue's colour but only 0.033 from the metal's: a share of so
+        // short a way is within the steel's own colour, and it takes the
+        // class of the regions around it, mostly steel (without the floor
+        // of half `grow_separation` it would be tissue)
+        let (w, h) = (208usize, 96usize);
+        let rgb = paint(w, h, 0.01, 14, |x, y| match (x, y) {
+            (40..56, 32..64) => [255.0, 241.0, 238.0],
+            (0..56, _) => [150.0, 152.0, 160.0],
+            _ => [200.0, 166.0, 158.0],
+        });
+        assert_instrument_left(&rgb, w, h, 52, 60);
     }
 
     #[test]
@@ -916,10 +937,10 @@ mod tests {
     #[test]
     fn clipped_steel_beside_the_steel_stays_steel() {
         // a sheen at the steel's edge, its red channel clipped and tinted
-        // by the pale tissue beside it: its colour lies past half way to
-        // the tissue's, but within `grow_separation` of the metal's, so it
-        // takes the class of the regions around it, mostly steel (without
-        // that distance it would be tissue)
+        // by the pale tissue beside it (0.73 of the way to its colour): the
+        // tissue's colour lies within `grow_separation` of the metal's (0.054),
+        // where a share of the way says nothing, so the sheen takes the
+        // class of the regions around it, mostly steel
         let (w, h) = (160usize, 96usize);
         let rgb = paint(w, h, 0.01, 6, |x, y| match (x, y) {
             (40..56, 32..64) => [255.0, 240.0, 232.0],
