@@ -13,8 +13,9 @@ use super::graph;
 use super::regions::Region;
 use super::{Scratch, SegmentParams};
 
-/// Rounds of growing the instrument into the regions that border it (steps
-/// 4b and 4c, [`grow`]).
+/// Rounds of growing the instrument into the regions that run along it by
+/// the colours beside them (step 4c, [`grow`]). Step 4b grows until no
+/// region joins.
 const GROW_ROUNDS: usize = 2;
 
 /// How far from the line through the metal's and the tissue's colours a
@@ -280,15 +281,20 @@ fn near_line(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], width: f32) -> boo
 }
 
 /// Grows the instrument over the merged regions `roots` for up to
-/// [`GROW_ROUNDS`] rounds (steps 4b and 4c): in each round every tissue
+/// `rounds` rounds (steps 4b and 4c): in each round every tissue
 /// region `i` for which `joins(i, instrument)` holds becomes instrument
 /// (`instrument`: 1 instrument, 0 tissue). A region that joins is marked 2,
 /// neither class, until the round ends, so the rule reads every region of
 /// a round against the classes the round began with (the order of the
 /// regions does not matter) and the next round sees it as instrument. Stops
 /// early after a round in which none joined.
-fn grow(roots: &[u32], instrument: &mut [u8], mut joins: impl FnMut(usize, &[u8]) -> bool) {
-    for _ in 0..GROW_ROUNDS {
+fn grow(
+    roots: &[u32],
+    instrument: &mut [u8],
+    rounds: usize,
+    mut joins: impl FnMut(usize, &[u8]) -> bool,
+) {
+    for _ in 0..rounds {
         let mut grew = false;
         for &i in roots {
             let i = i as usize;
@@ -449,7 +455,10 @@ fn joins_by_neighbours(
 ///    within [`SegmentParams::grow_share`] of the way from `M` to `T`, near
 ///    the line through them, and is about as bright as the instrument it
 ///    borders ([`SegmentParams::grow_brightness`]; not where `T` lies within
-///    [`SegmentParams::grow_separation`] of `M`), two rounds;
+///    [`SegmentParams::grow_separation`] of `M`), round after round until
+///    none joins (a far gripper tinted a little more at each of its parts
+///    joins part by part; each round adds a region, so there are at most as
+///    many rounds as regions);
 ///    then (4c) a region that runs along the instrument and is about as
 ///    bright joins it where its colour lies less than
 ///    [`SegmentParams::neighbour_ratio`] times as far from the steel's
@@ -708,7 +717,8 @@ pub(super) fn classify(
     // (a far gripper or a joint's disc tinted by the tissue it reflects);
     // bright regions keep their stricter rule
     if p.grow_share > 0.5 && dist2(metal, tissue) > p.grow_separation.powi(2) {
-        grow(roots, instrument, |i, instrument| {
+        // each round but the last adds a region: at most as many as there are
+        grow(roots, instrument, roots.len(), |i, instrument| {
             let r = &regions[i];
             if region_class[i] != COLOURED
                 || r.lum > bright_l
@@ -741,7 +751,7 @@ pub(super) fn classify(
             adjacency,
             adjacency_start,
         };
-        grow(roots, instrument, |i, instrument| {
+        grow(roots, instrument, GROW_ROUNDS, |i, instrument| {
             joins_by_neighbours(&g, i, instrument, tissue, p)
         });
     }

@@ -884,6 +884,31 @@ mod tests {
     }
 
     #[test]
+    fn a_part_tinted_more_at_each_step_grows_in_until_none_joins() {
+        // steel, three strips each further from the metal's colour toward
+        // the pink tissue's (0.55, 0.64 and 0.76 of the way: tissue by the
+        // nearer colour, within a `grow_share` of 0.8), the middle one 15 %
+        // darker (so that they do not merge), then the tissue: step 4b
+        // takes one strip a round, so the
+        // third joins in the third round (two rounds, as before, left it
+        // tissue). Step 4c, which would take it too, is off.
+        let (w, h) = (208usize, 96usize);
+        let rgb = paint(w, h, 0.01, 15, |x, _| match x {
+            0..48 => [150.0, 152.0, 160.0],
+            48..64 => [181.0, 142.0, 140.0],
+            64..80 => [158.0, 119.0, 116.0],
+            80..96 => [192.0, 138.0, 132.0],
+            _ => [200.0, 130.0, 120.0],
+        });
+        let params = SegmentParams {
+            grow_share: 0.8,
+            neighbour_ratio: 0.0,
+            ..SegmentParams::default()
+        };
+        assert_instrument_left_with(&rgb, w, h, 92, 100, &params);
+    }
+
+    #[test]
     fn a_clipped_sheen_near_the_metals_colour_stays_steel() {
         // pale warm tissue 0.086 from the metal's colour (just past
         // `grow_separation`, so step 5's colour rule is on) and a sheen at
