@@ -889,9 +889,9 @@ mod tests {
         // the pink tissue's (0.55, 0.64 and 0.76 of the way: tissue by the
         // nearer colour, within a `grow_share` of 0.8), the middle one 15 %
         // darker (so that they do not merge), then the tissue: step 4b
-        // takes one strip a round, so the
-        // third joins in the third round (two rounds, as before, left it
-        // tissue). Step 4c, which would take it too, is off.
+        // takes one strip a round, so the third joins in the third round
+        // (two rounds, as before, left it tissue). Step 4c, which would
+        // take it too, is off.
         let (w, h) = (208usize, 96usize);
         let rgb = paint(w, h, 0.01, 15, |x, _| match x {
             0..48 => [150.0, 152.0, 160.0],
@@ -908,6 +908,18 @@ mod tests {
         assert_instrument_left_with(&rgb, w, h, 92, 100, &params);
     }
 
+    /// A 208×96 frame, noise σ 0.01 (seed `seed`): steel (columns 0–55)
+    /// with a sheen `sheen` at its edge (columns 40–55, rows 32–63), then
+    /// tissue `tissue`. Where the sheen takes the class of the regions
+    /// around it, mostly steel, the instrument ends at column 56 on every row.
+    fn sheen_at_the_steels_edge(seed: u64, sheen: [f64; 3], tissue: [f64; 3]) -> Vec<u8> {
+        paint(208, 96, 0.01, seed, |x, y| match (x, y) {
+            (40..56, 32..64) => sheen,
+            (0..56, _) => [150.0, 152.0, 160.0],
+            _ => tissue,
+        })
+    }
+
     #[test]
     fn a_clipped_sheen_near_the_metals_colour_stays_steel() {
         // pale warm tissue 0.086 from the metal's colour (just past
@@ -917,13 +929,8 @@ mod tests {
         // short a way is within the steel's own colour, and it takes the
         // class of the regions around it, mostly steel (without the floor
         // of half `grow_separation` it would be tissue)
-        let (w, h) = (208usize, 96usize);
-        let rgb = paint(w, h, 0.01, 14, |x, y| match (x, y) {
-            (40..56, 32..64) => [255.0, 241.0, 238.0],
-            (0..56, _) => [150.0, 152.0, 160.0],
-            _ => [200.0, 166.0, 158.0],
-        });
-        assert_instrument_left(&rgb, w, h, 52, 60);
+        let rgb = sheen_at_the_steels_edge(14, [255.0, 241.0, 238.0], [200.0, 166.0, 158.0]);
+        assert_instrument_left(&rgb, 208, 96, 52, 60);
     }
 
     #[test]
@@ -950,13 +957,8 @@ mod tests {
         // clipped, 0.24 of the way from the metal's colour to the tissue's
         // (what steel tinted 25 % by this tissue reads at most): it takes
         // the class of the regions around it, mostly steel
-        let (w, h) = (208usize, 96usize);
-        let rgb = paint(w, h, 0.01, 6, |x, y| match (x, y) {
-            (40..56, 32..64) => [255.0, 235.0, 230.0],
-            (0..56, _) => [150.0, 152.0, 160.0],
-            _ => [200.0, 130.0, 120.0],
-        });
-        assert_instrument_left(&rgb, w, h, 52, 60);
+        let rgb = sheen_at_the_steels_edge(6, [255.0, 235.0, 230.0], [200.0, 130.0, 120.0]);
+        assert_instrument_left(&rgb, 208, 96, 52, 60);
     }
 
     #[test]
