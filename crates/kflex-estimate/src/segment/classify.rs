@@ -288,30 +288,47 @@ fn near_line(ch: [f32; 2], metal: [f32; 2], tissue: [f32; 2], width: f32) -> boo
 /// a round against the classes the round began with (the order of the
 /// regions does not matter) and the next round sees it as instrument. Stops
 /// early after a round in which none joined.
-// inlined: a call per step cost 2–4 % of the working region's time (criterion,
-// the same rounds either way), where two rounds were a constant
-#[inline(always)]
+///
+/// Both rules read only a region's own colour and its neighbours' classes,
+/// so after the first round only the neighbours of the regions that joined
+/// in the last one can join: a round asks those alone (`frontier`; `joined`
+/// lists a round's joiners), and all the rounds together ask at most every
+/// region once and then each side of every edge of the regions' graph
+/// (`graph`: its adjacency and where each region's starts) once. The
+/// buffers hold as much (`regions::split` reserves it for the region's
+/// size): no allocation.
 fn grow(
     roots: &[u32],
     instrument: &mut [u8],
     rounds: usize,
+    (adjacency, adjacency_start): (&[[u32; 2]], &[u32]),
+    (frontier, joined): (&mut Vec<u32>, &mut Vec<u32>),
     mut joins: impl FnMut(usize, &[u8]) -> bool,
 ) {
+    frontier.clear();
+    frontier.extend_from_slice(roots);
     for _ in 0..rounds {
-        let mut grew = false;
-        for &i in roots {
+        joined.clear();
+        // a region listed twice is asked once: the first time marks it 2
+        for &i in frontier.iter() {
             let i = i as usize;
             if instrument[i] == 0 && joins(i, instrument) {
                 instrument[i] = 2;
-                grew = true;
+                joined.push(i as u32);
             }
         }
-        instrument
-            .iter_mut()
-            .filter(|v| **v == 2)
-            .for_each(|v| *v = 1);
-        if !grew {
+        if joined.is_empty() {
             break;
+        }
+        frontier.clear();
+        for &j in joined.iter() {
+            instrument[j as usize] = 1;
+            let next = graph::neighbours(adjacency, adjacency_start, j as usize);
+            frontier.extend(
+                next.iter()
+                    .map(|&[o, _]| o)
+                    .filter(|&o| instrument[o as usize] == 0),
+            );
         }
     }
 }
@@ -460,7 +477,7 @@ fn joins_by_neighbours(
 ///    borders ([`SegmentParams::grow_brightness`]; not where `T` lies within
 ///    [`SegmentParams::grow_separation`] of `M`), round after round until
 ///    none joins (a far gripper tinted a little more at each of its parts
-///    joins part by part; each round adds a region, so there are at most as
+///    joins part by part; each round but the last adds a region, so there are at most as
 ///    many rounds as regions);
 ///    then (4c) a region that runs along the instrument and is about as
 ///    bright joins it where its colour lies less than
@@ -499,6 +516,8 @@ pub(super) fn classify(
         roots,
         adjacency,
         adjacency_start,
+        grow_frontier,
+        grow_joined,
         ..
     } = s;
     // the merged regions, once: every loop below runs over them, not the leaves
@@ -721,27 +740,36 @@ pub(super) fn classify(
     // bright regions keep their stricter rule
     if p.grow_share > 0.5 && dist2(metal, tissue) > p.grow_separation.powi(2) {
         // each round but the last adds a region: at most as many as there are
-        grow(roots, instrument, roots.len(), |i, instrument| {
-            let r = &regions[i];
-            if region_class[i] != COLOURED
-                || r.lum > bright_l
-                || !metal_side(r.chroma, metal, tissue, p.grow_share)
-                || !near_line(r.chroma, metal, tissue, GROW_WIDTH)
-            {
-                return false;
-            }
-            // the instrument's brightness over the cell edges it shares
-            // with this region
-            let (mut sum, mut edges) = (0.0f32, 0u32);
-            for &[o, n] in graph::neighbours(adjacency, adjacency_start, i) {
-                if instrument[o as usize] == 1 {
-                    sum += regions[o as usize].lum * n as f32;
-                    edges += n;
+        grow(
+            roots,
+            instrument,
+            roots.len(),
+            (adjacency, adjacency_start),
+            (grow_frontier, grow_joined),
+            |i, instrument| {
+                let r = &regions[i];
+                if region_class[i] != COLOURED
+                    || r.lum > bright_l
+                    || !metal_side(r.chroma, metal, tissue, p.grow_share)
+                    || !near_line(r.chroma, metal, tissue, GROW_WIDTH)
+                {
+                    return false;
                 }
-            }
-            let around = sum / edges.max(1) as f32;
-            edges > 0 && r.lum <= p.grow_brightness * around && r.lum * p.grow_brightness >= around
-        });
+                // the instrument's brightness over the cell edges it shares
+                // with this region
+                let (mut sum, mut edges) = (0.0f32, 0u32);
+                for &[o, n] in graph::neighbours(adjacency, adjacency_start, i) {
+                    if instrument[o as usize] == 1 {
+                        sum += regions[o as usize].lum * n as f32;
+                        edges += n;
+                    }
+                }
+                let around = sum / edges.max(1) as f32;
+                edges > 0
+                    && r.lum <= p.grow_brightness * around
+                    && r.lum * p.grow_brightness >= around
+            },
+        );
     }
     // 4c: steel mirrors what lies around it, so a part of it may lie nearer
     // the frame's tissue colour than the metal's (a lit flank on white
@@ -754,9 +782,14 @@ pub(super) fn classify(
             adjacency,
             adjacency_start,
         };
-        grow(roots, instrument, GROW_ROUNDS, |i, instrument| {
-            joins_by_neighbours(&g, i, instrument, tissue, p)
-        });
+        grow(
+            roots,
+            instrument,
+            GROW_ROUNDS,
+            (adjacency, adjacency_start),
+            (grow_frontier, grow_joined),
+            |i, instrument| joins_by_neighbours(&g, i, instrument, tissue, p),
+        );
     }
     // 5: one channel clipping leaves a colour, and a region (its darkest
     // channel not clipped) whose colour lies at least `CLIPPED_TISSUE_SHARE`

@@ -303,21 +303,24 @@ pub fn segment(
 ///    [`SegmentParams::clip_value`]), regions with a clipped channel
 ///    ([`SegmentParams::saturated_value`]) and small highlights
 ///    ([`SegmentParams::highlight_ratio`]) take the class of the regions
-///    around them (the clipped tissue below voting as tissue), except a
-///    region with a clipped channel but an unclipped darkest one whose
-///    colour lies at least 0.3 of the way from the metal's to the tissue's
-///    where those differ by more than [`SegmentParams::grow_separation`]
-///    (clipping pulls a colour toward neutral; steel tinted by the tissue
-///    lies at most the tint's share of the way), which is tissue. A frame of one colour has nothing to tell apart and finds no
-///    instrument, whatever the colour.
+///    around them once the growth of step 5 has run (the clipped tissue
+///    below voting as tissue), except a region with a clipped channel but
+///    an unclipped darkest one whose colour lies at least 0.3 of the way
+///    from the metal's to the tissue's, where those differ by more than
+///    [`SegmentParams::grow_separation`] and it lies more than half that
+///    from the metal's (clipping pulls a colour toward neutral; steel
+///    tinted by the tissue lies at most the tint's share of the way), which
+///    is tissue. A frame of one colour has nothing to tell apart and finds
+///    no instrument, whatever the colour.
 ///    Tape is red, so a taped part is lost, as in the paper.
 /// 5. **The instrument is one object**, on the graph of the merged regions
 ///    (which share cell edges, and how many): a region that borders the
 ///    instrument joins it where it lies a little past half way toward the
 ///    tissue's colour and is about as bright as the steel it borders
 ///    ([`SegmentParams::grow_share`]: a far gripper tinted by the tissue it
-///    reflects); a region that runs along the instrument and is about as
-///    bright joins it where its colour lies nearer the steel's beside it
+///    reflects; round after round, until none joins); a region that runs
+///    along the instrument and is about as bright joins it where its colour
+///    lies nearer the steel's beside it
 ///    than the tissue's beside it, by [`SegmentParams::neighbour_ratio`] (a
 ///    lit flank on white tissue, a joint tinted by the tissue); tissue
 ///    enclosed by instrument is instrument
@@ -380,7 +383,8 @@ struct Scratch {
     regions: Vec<Region>,
     parent: Vec<u32>,
     instrument: Vec<u8>,
-    /// Per region: dark, bright or clipped (see `classify`).
+    /// Per region: dark, coloured, clipped, a candidate highlight or
+    /// clipped tissue (see `classify`).
     region_class: Vec<u8>,
     /// The merged regions (roots of `parent`).
     roots: Vec<u32>,
@@ -396,6 +400,10 @@ struct Scratch {
     /// cell edges, region `r`'s from `adjacency_start[r]` to `adjacency_start[r + 1]`.
     adjacency: Vec<[u32; 2]>,
     adjacency_start: Vec<u32>,
+    /// The regions a round of the instrument's growth asks (steps 4b and
+    /// 4c), and those that joined in it (`classify::grow`).
+    grow_frontier: Vec<u32>,
+    grow_joined: Vec<u32>,
     /// Per region: whether it has a cell on the region of interest's edge.
     on_border: Vec<bool>,
     /// Per instrument component: its regions' range in `component`, and its pixels.
@@ -888,10 +896,10 @@ mod tests {
         // steel, three strips each further from the metal's colour toward
         // the pink tissue's (0.55, 0.64 and 0.76 of the way: tissue by the
         // nearer colour, within a `grow_share` of 0.8), the middle one 15 %
-        // darker (so that they do not merge), then the tissue: step 4b
-        // takes one strip a round, so the third joins in the third round
-        // (two rounds, as before, left it tissue). Step 4c, which would
-        // take it too, is off.
+        // darker (so that the split tells the last two apart), then the
+        // tissue: step 4b takes one strip a round, so the third joins in
+        // the third round (two rounds, as before, left it tissue). Step 4c
+        // is off, so that step 4b alone is tested.
         let (w, h) = (208usize, 96usize);
         let rgb = paint(w, h, 0.01, 15, |x, _| match x {
             0..48 => [150.0, 152.0, 160.0],

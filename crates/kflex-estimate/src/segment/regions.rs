@@ -80,6 +80,12 @@ pub(super) fn split(s: &mut Scratch, depth: usize, rw: usize, rh: usize, p: Segm
         buffer.clear();
         buffer.reserve(cols * rows);
     }
+    // the growth's rounds: every side of every edge (as the adjacency), and
+    // a region each
+    s.grow_frontier.clear();
+    s.grow_frontier.reserve(4 * cols * rows);
+    s.grow_joined.clear();
+    s.grow_joined.reserve(cols * rows);
     s.on_border.clear();
     s.on_border.reserve(cols * rows);
     s.seen.clear();
