@@ -113,8 +113,8 @@ fn no_instrument_only_when_there_is_none() {
 /// background per organ, and these keep the segmentation from being tuned
 /// to it. As measured; goal 0 for each.
 const MOST_UNDER_GOAL: [(u64, [usize; 16]); 3] = [
-    (100, [0, 0, 0, 2, 6, 0, 0, 5, 0, 4, 0, 0, 0, 0, 0, 0]),
-    (200, [0, 0, 1, 1, 5, 0, 0, 7, 0, 3, 0, 0, 0, 0, 0, 0]),
+    (100, [0, 0, 0, 2, 5, 0, 0, 5, 0, 4, 0, 0, 0, 0, 0, 0]),
+    (200, [0, 0, 1, 1, 4, 0, 0, 7, 0, 3, 0, 0, 0, 0, 0, 0]),
     (300, [0, 0, 1, 1, 4, 0, 0, 2, 0, 2, 0, 0, 0, 0, 0, 0]),
 ];
 

@@ -60,9 +60,11 @@ pub struct SegmentParams {
     /// median does not make a dim part bright) is instrument only where its
     /// chromaticity lies within [`SegmentParams::bright_metal_share`] of the
     /// way from the metal's to the tissue's (other regions: within half the
-    /// way, the nearer class), and is kept out of the growth of
-    /// [`SegmentParams::grow_share`] (not out of that of
-    /// [`SegmentParams::neighbour_ratio`]). Bright tissue is pulled toward
+    /// way, the nearer class), and grows in by the rule of
+    /// [`SegmentParams::grow_share`] only within 0.35 of the way and where
+    /// it has at least 16 pixels (`BRIGHT_GROW_SHARE` and `JOIN_MIN_PX` in
+    /// `classify.rs`: a lit flank of the shaft reflecting the tissue; by
+    /// that of [`SegmentParams::neighbour_ratio`] as any region). Bright tissue is pulled toward
     /// white by its wet sheen and by its red channel clipping, toward the
     /// steel's near-neutral colour; bright steel is not pulled toward the
     /// tissue's.
@@ -71,7 +73,8 @@ pub struct SegmentParams {
     pub bright_metal_share: f32,
     /// A region that borders the instrument joins it where its chromaticity
     /// lies within this share of the way from the metal's to the tissue's
-    /// (other regions: half the way). The instrument is one object; a far
+    /// (a bright region: within 0.35, see [`SegmentParams::bright_ratio`];
+    /// other regions: half the way). The instrument is one object; a far
     /// gripper or a joint's disc that reflects the tissue around it lies
     /// past half way but borders the rest. At most 0.5 turns this off.
     pub grow_share: f32,
@@ -926,6 +929,27 @@ mod tests {
             (0..56, _) => [150.0, 152.0, 160.0],
             _ => tissue,
         })
+    }
+
+    #[test]
+    fn a_bright_flank_reflecting_the_tissue_grows_in() {
+        // bright steel, a flank as bright as it 0.33 of the way toward the
+        // dim pink tissue's colour (a lit flank reflecting the tissue at a
+        // grazing angle), then the tissue: the bright rule (within 0.3 of
+        // the way) makes the flank tissue, and step 4b, which kept bright
+        // regions out, now takes it within `BRIGHT_GROW_SHARE`. Step 4c,
+        // which would take it too, is off, so that step 4b alone is tested.
+        let (w, h) = (208usize, 96usize);
+        let rgb = paint(w, h, 0.01, 16, |x, _| match x {
+            0..48 => [200.0, 202.0, 212.0],
+            48..64 => [232.0, 191.0, 191.0],
+            _ => [150.0, 85.0, 75.0],
+        });
+        let params = SegmentParams {
+            neighbour_ratio: 0.0,
+            ..SegmentParams::default()
+        };
+        assert_instrument_left_with(&rgb, w, h, 60, 68, &params);
     }
 
     #[test]
