@@ -139,8 +139,8 @@ fn brightest(m: [f32; 3]) -> f32 {
     m[0].max(m[1]).max(m[2])
 }
 
-/// A region counts as bright (the stricter rule of step 4, no growth in
-/// step 4b) only where it is also at least this share of the region of
+/// A region counts as bright (the stricter rule of step 4; in step 4b only
+/// within [`BRIGHT_GROW_SHARE`] and with at least [`JOIN_MIN_PX`] pixels) only where it is also at least this share of the region of
 /// interest's 90th percentile brightness (pixel-weighted over the merged
 /// regions), as well as [`SegmentParams::bright_ratio`] times its median.
 /// Where the dark lumen fills most of the region its median is the lumen's,
@@ -376,7 +376,8 @@ const JOIN_MIN_PX: f32 = 16.0;
 /// with this). Bright tissue's sheen lies further (the bright rule's
 /// reason). Chosen on the robustness matrix over offsets 0–500 and
 /// 600–1100 both: 0.35 takes the cases under a goal 75 → 73 and 84 → 78,
-/// none newly under; 0.4 gives 73 and 76 but puts a blur case newly under.
+/// none newly under; 0.4 (with the size floor) gives 73 and 76 but puts a
+/// blur case newly under.
 const BRIGHT_GROW_SHARE: f32 = 0.35;
 
 /// Step 4c, for region `i`, tissue: whether it joins the instrument by the
@@ -567,8 +568,8 @@ pub(super) fn classify(
     }
     let median_l = brightness.quantile(0.5, 0.0, 3.0);
     let min_l = p.min_relative_value * median_l;
-    // a bright region (held to the stricter rule below, kept out of step
-    // 4b's growth) is bright against the frame's brightest regions too: where
+    // a bright region (held to the stricter rule below, and to
+    // `BRIGHT_GROW_SHARE` and `JOIN_MIN_PX` in step 4b) is bright against the frame's brightest regions too: where
     // the dark lumen fills most of the region, its median is the lumen's,
     // and a tinted joint at 35 mm counted as bright by it alone
     let bright_l =

@@ -321,7 +321,8 @@ pub fn segment(
 ///    instrument joins it where it lies a little past half way toward the
 ///    tissue's colour and is about as bright as the steel it borders
 ///    ([`SegmentParams::grow_share`]: a far gripper tinted by the tissue it
-///    reflects; round after round, until none joins); a region that runs
+///    reflects; a bright region within 0.35 of the way and of 16 px or
+///    more; round after round, until none joins); a region that runs
 ///    along the instrument and is about as bright joins it where its colour
 ///    lies nearer the steel's beside it
 ///    than the tissue's beside it, by [`SegmentParams::neighbour_ratio`] (a
