@@ -691,6 +691,10 @@ pub(super) fn classify(
     // k-means) lets it drift onto pale tissue (measured: gain 1.6 on the
     // larynx fell to IoU 0.64)
     let metal = p.metal_chroma;
+    // a region whose brightest channel clips and darkest does not keeps a
+    // colour (steel that clips is white): the tissue colour's rounds count
+    // it, step 5 may decide it by it
+    let keeps_a_colour = |m: [f32; 3]| brightest(m) > saturated_value && darkest(m) <= clip_value;
     // bright tissue is pulled toward white (its sheen, its red channel
     // clipping), so a bright region must lie nearer the metal
     let share = |lum: f32| {
@@ -732,8 +736,7 @@ pub(super) fn classify(
         for &i in roots.iter() {
             let r = &regions[i as usize];
             if region_class[i as usize] == CLIPPED
-                && brightest(r.mean) > saturated_value
-                && darkest(r.mean) <= clip_value
+                && keeps_a_colour(r.mean)
                 && dist2(r.chroma, metal) > p.grow_separation.powi(2)
             {
                 hx.add(r.chroma[0], -1.0, 1.0, f64::from(r.count));
@@ -753,12 +756,15 @@ pub(super) fn classify(
             region_class[i] == COLOURED && metal_side(ch, metal, tissue, share(regions[i].lum)),
         );
     }
+    // the tissue's colour lies clearly off the metal's: a share of the way
+    // from one to the other means something (steps 4b and 5)
+    let tissue_coloured = dist2(metal, tissue) > p.grow_separation.powi(2);
     // 4b: the instrument is one object: a region that borders it and lies
     // within `grow_share` of the way from the metal to the tissue joins it
     // (a far gripper or a joint's disc tinted by the tissue it reflects);
     // a bright region within `BRIGHT_GROW_SHARE` of the way, and of some
     // size (a lit flank reflecting the tissue)
-    if p.grow_share > 0.5 && dist2(metal, tissue) > p.grow_separation.powi(2) {
+    if p.grow_share > 0.5 && tissue_coloured {
         // each round but the last adds a region: at most as many as there are
         grow(
             roots,
@@ -830,9 +836,8 @@ pub(super) fn classify(
         let i = i as usize;
         let r = &regions[i];
         if region_class[i] == CLIPPED
-            && brightest(r.mean) > saturated_value
-            && darkest(r.mean) <= clip_value
-            && dist2(tissue, metal) > p.grow_separation.powi(2)
+            && tissue_coloured
+            && keeps_a_colour(r.mean)
             && dist2(r.chroma, metal) > (0.5 * p.grow_separation).powi(2)
             && !metal_side(r.chroma, metal, tissue, CLIPPED_TISSUE_SHARE)
         {
