@@ -25,9 +25,9 @@ const BOUNDS: [(Condition, f64, f64); 12] = [
     (Condition::Noise(0.1), 0.90, 0.85),                // 0.910 / 0.855
     (Condition::Blur(3.0), 0.89, 0.82), // BELOW GOAL: 0.891 / 0.821 (median 0.946 / 0.924)
     (Condition::Tint(0.25), 0.90, 0.85), // 0.964 / 0.927
-    (Condition::Specular, 0.90, 0.85),  // 0.928 / 0.876
-    (Condition::Tissue(Tissue::Grey), 0.88, 0.85), // BELOW GOAL: 0.888 / 0.855 (median 0.972 / 0.966)
-    (Condition::Tissue(Tissue::Pale), 0.90, 0.85), // 0.949 / 0.913
+    (Condition::Specular, 0.90, 0.85),  // 0.941 / 0.903
+    (Condition::Tissue(Tissue::Grey), 0.88, 0.85), // BELOW GOAL: 0.889 / 0.857 (median 0.972 / 0.966)
+    (Condition::Tissue(Tissue::Pale), 0.90, 0.85), // 0.948 / 0.913
     (Condition::Tissue(Tissue::White), 0.89, 0.84), // BELOW GOAL: 0.892 / 0.845 (median 0.972 / 0.967)
     (Condition::Tissue(Tissue::BlueGreen), 0.90, 0.85), // 0.964 / 0.928
     (Condition::Tissue(Tissue::Yellow), 0.90, 0.85), // 0.961 / 0.922
@@ -114,7 +114,7 @@ fn no_instrument_only_when_there_is_none() {
 /// to it. As measured; goal 0 for each.
 const MOST_UNDER_GOAL: [(u64, [usize; 16]); 3] = [
     (100, [0, 0, 0, 2, 5, 0, 0, 5, 0, 4, 0, 0, 0, 0, 0, 0]),
-    (200, [0, 0, 1, 1, 4, 0, 0, 7, 0, 3, 0, 0, 0, 0, 0, 0]),
+    (200, [0, 0, 0, 1, 4, 0, 0, 7, 0, 3, 0, 0, 0, 0, 0, 0]),
     (300, [0, 0, 1, 1, 4, 0, 0, 2, 0, 2, 0, 0, 0, 0, 0, 0]),
 ];
 

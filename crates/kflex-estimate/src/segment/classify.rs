@@ -182,7 +182,8 @@ const CLIPPED_TISSUE_SHARE: f32 = 0.3;
 /// (tissue: lumen, shadow), coloured (sorted by its colour, steps 4–4c) or
 /// clipped (left for step 5); a candidate highlight while step 2 decides;
 /// clipped tissue, once step 5 has found a clipped region's colour on the
-/// tissue's side (it then votes as tissue on the other clipped regions).
+/// tissue's side (it then votes as tissue on the other clipped regions);
+/// clipped and already gathered into its blob by step 5's vote.
 const DARK: u8 = 0;
 /// See [`DARK`].
 const COLOURED: u8 = 1;
@@ -192,6 +193,8 @@ const CLIPPED: u8 = 2;
 const CANDIDATE: u8 = 3;
 /// See [`DARK`].
 const CLIPPED_TISSUE: u8 = 4;
+/// See [`DARK`].
+const CLIPPED_SEEN: u8 = 5;
 
 /// Bins of the chromaticity histograms, over `[-1, 1]`.
 const BINS: usize = 512;
@@ -831,7 +834,10 @@ pub(super) fn classify(
     // and highlights take their neighbours' class, by shared cell edges,
     // the clipped tissue of the first pass voting as tissue (a white glare
     // beside the tip, bordered by clipped pink tissue and the gripper,
-    // took the gripper's class from the only neighbour left to vote)
+    // took the gripper's class from the only neighbour left to vote), and
+    // clipped regions that touch vote as one blob (a glare clipped white,
+    // ringed by a rim clipped in two channels, is bordered by the tissue
+    // around the rim: voting alone, it heard only the gripper at its tip)
     for &i in roots.iter() {
         let i = i as usize;
         let r = &regions[i];
@@ -847,14 +853,34 @@ pub(super) fn classify(
     }
     for &i in roots.iter() {
         let i = i as usize;
-        if region_class[i] == CLIPPED {
-            let mut votes = [0u32; 2];
-            for &[o, n] in graph::neighbours(adjacency, adjacency_start, i) {
-                if region_class[o as usize] != CLIPPED {
-                    votes[usize::from(instrument[o as usize])] += n;
+        if region_class[i] != CLIPPED {
+            continue;
+        }
+        // the clipped regions linked to this one through clipped regions
+        // (a glare and the clipped rim around it) are one blob, which takes
+        // the class of what borders it, by shared cell edges
+        grow_frontier.clear();
+        grow_joined.clear();
+        region_class[i] = CLIPPED_SEEN;
+        grow_frontier.push(i as u32);
+        let mut votes = [0u32; 2];
+        while let Some(j) = grow_frontier.pop() {
+            grow_joined.push(j);
+            for &[o, n] in graph::neighbours(adjacency, adjacency_start, j as usize) {
+                let o = o as usize;
+                match region_class[o] {
+                    CLIPPED => {
+                        region_class[o] = CLIPPED_SEEN;
+                        grow_frontier.push(o as u32);
+                    }
+                    CLIPPED_SEEN => {}
+                    _ => votes[usize::from(instrument[o])] += n,
                 }
             }
-            instrument[i] = u8::from(votes[1] > votes[0]);
+        }
+        let class = u8::from(votes[1] > votes[0]);
+        for &j in grow_joined.iter() {
+            instrument[j as usize] = class;
         }
     }
     Classes {

@@ -307,7 +307,8 @@ pub fn segment(
 ///    ([`SegmentParams::saturated_value`]) and small highlights
 ///    ([`SegmentParams::highlight_ratio`]) take the class of the regions
 ///    around them once the growth of step 5 has run (the clipped tissue
-///    below voting as tissue), except a region with a clipped channel but
+///    below voting as tissue; clipped regions that touch vote as one blob,
+///    so a glare ringed by a clipped rim hears the tissue around the rim), except a region with a clipped channel but
 ///    an unclipped darkest one whose colour lies at least 0.3 of the way
 ///    from the metal's to the tissue's, where those differ by more than
 ///    [`SegmentParams::grow_separation`] and it lies more than half that
@@ -387,8 +388,8 @@ struct Scratch {
     regions: Vec<Region>,
     parent: Vec<u32>,
     instrument: Vec<u8>,
-    /// Per region: dark, coloured, clipped, a candidate highlight or
-    /// clipped tissue (see `classify`).
+    /// Per region: dark, coloured, clipped, a candidate highlight,
+    /// clipped tissue or clipped and gathered into a blob (see `classify`).
     region_class: Vec<u8>,
     /// The merged regions (roots of `parent`).
     roots: Vec<u32>,
@@ -979,6 +980,26 @@ mod tests {
             (0..48, _) => [150.0, 152.0, 160.0],
             (48..80, 24..72) => [255.0, 255.0, 255.0],
             (48..112, _) => [255.0, 200.0, 185.0],
+            _ => [200.0, 130.0, 120.0],
+        });
+        assert_instrument_left(&rgb, w, h, 44, 52);
+    }
+
+    #[test]
+    fn a_white_glare_ringed_by_a_clipped_rim_is_tissue() {
+        // a glare clipped white in every channel (rows 24–71 of columns
+        // 48–79) borders the steel on its left and, on its other sides, a
+        // rim clipped in red and green, so near neutral (0.032 from the
+        // metal's colour) that its colour decides nothing (rows 8–87 of
+        // columns 48–127), inside pink tissue: the glare and the rim vote
+        // as one blob, bordered by the tissue along 240 px and the steel
+        // along 80 (voting alone, the glare heard only the steel: gain 1.6,
+        // colon −60° at 8 mm, a fold's glare at the gripper's tip)
+        let (w, h) = (208usize, 96usize);
+        let rgb = paint(w, h, 0.01, 17, |x, y| match (x, y) {
+            (0..48, _) => [150.0, 152.0, 160.0],
+            (48..80, 24..72) => [255.0, 255.0, 255.0],
+            (48..128, 8..88) => [255.0, 252.0, 240.0],
             _ => [200.0, 130.0, 120.0],
         });
         assert_instrument_left(&rgb, w, h, 44, 52);
