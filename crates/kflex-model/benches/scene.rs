@@ -2,9 +2,9 @@
 //! Goals (camera v2) on one core: ≥ 300 shaded 640×480 frames per second
 //! with every realism feature on (here 40 % distal tape, sensor noise), and
 //! ≥ 1,500 per second of the region of interest alone (`render_window` of
-//! `Roi::paper`). The README's status section has the last figures (both
-//! met on the machine of 2026-11-28 onward, the region's with little to
-//! spare), `STATUS.md` their history. The pose changes every iteration; the frame number does
+//! `Roi::paper`). The README's status section has the last figures (the
+//! frames' goal met; the region's met in some runs and not others on the
+//! machine of 2026-11-28 onward), `STATUS.md` their history. The pose changes every iteration; the frame number does
 //! not, but nothing is cached by it (each frame draws its sensor noise anew).
 //! To see where a frame's time goes, `examples/scene_profile.rs` renders the
 //! same frames for a profiler (callgrind's instruction counts hold on a

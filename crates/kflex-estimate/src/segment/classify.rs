@@ -520,7 +520,9 @@ fn joins_by_neighbours(
 ///    region takes the class that borders most of it, over the regions
 ///    that are not clipped and the clipped tissue just found (a white glare
 ///    beside the gripper, bordered by clipped pink tissue, took the
-///    gripper's class when that tissue had no vote).
+///    gripper's class when that tissue had no vote), clipped regions that
+///    touch voting as one blob over what borders the blob (a glare ringed
+///    by a clipped rim heard only the gripper at its tip).
 pub(super) fn classify(
     s: &mut Scratch,
     p: &SegmentParams,
@@ -836,8 +838,8 @@ pub(super) fn classify(
     // beside the tip, bordered by clipped pink tissue and the gripper,
     // took the gripper's class from the only neighbour left to vote), and
     // clipped regions that touch vote as one blob (a glare clipped white,
-    // ringed by a rim clipped in two channels, is bordered by the tissue
-    // around the rim: voting alone, it heard only the gripper at its tip)
+    // ringed by a clipped rim, is bordered by the tissue around the rim:
+    // voting alone, it heard only the gripper at its tip)
     for &i in roots.iter() {
         let i = i as usize;
         let r = &regions[i];

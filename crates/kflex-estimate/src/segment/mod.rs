@@ -406,7 +406,8 @@ struct Scratch {
     adjacency: Vec<[u32; 2]>,
     adjacency_start: Vec<u32>,
     /// The regions a round of the instrument's growth asks (steps 4b and
-    /// 4c), and those that joined in it (`classify::grow`).
+    /// 4c), and those that joined in it (`classify::grow`); step 5's walk
+    /// over a blob of clipped regions, and the blob.
     grow_frontier: Vec<u32>,
     grow_joined: Vec<u32>,
     /// Per region: whether it has a cell on the region of interest's edge.
@@ -989,8 +990,9 @@ mod tests {
     fn a_white_glare_ringed_by_a_clipped_rim_is_tissue() {
         // a glare clipped white in every channel (rows 24–71 of columns
         // 48–79) borders the steel on its left and, on its other sides, a
-        // rim clipped in red and green, so near neutral (0.032 from the
-        // metal's colour) that its colour decides nothing (rows 8–87 of
+        // rim clipped in red and green (its blue, 0.93, under `clip_value`),
+        // so near neutral (0.037 from the metal's colour, under half of
+        // `grow_separation`) that its colour decides nothing (rows 8–87 of
         // columns 48–127), inside pink tissue: the glare and the rim vote
         // as one blob, bordered by the tissue along 240 px and the steel
         // along 80 (voting alone, the glare heard only the steel: gain 1.6,
@@ -999,7 +1001,7 @@ mod tests {
         let rgb = paint(w, h, 0.01, 17, |x, y| match (x, y) {
             (0..48, _) => [150.0, 152.0, 160.0],
             (48..80, 24..72) => [255.0, 255.0, 255.0],
-            (48..128, 8..88) => [255.0, 252.0, 240.0],
+            (48..128, 8..88) => [255.0, 252.0, 236.0],
             _ => [200.0, 130.0, 120.0],
         });
         assert_instrument_left(&rgb, w, h, 44, 52);

@@ -81,7 +81,7 @@ pub(super) fn split(s: &mut Scratch, depth: usize, rw: usize, rh: usize, p: Segm
         buffer.reserve(cols * rows);
     }
     // the growth's rounds: every side of every edge (as the adjacency), and
-    // a region each
+    // a region each (step 5's blob walk holds a region each in both)
     s.grow_frontier.clear();
     s.grow_frontier.reserve(4 * cols * rows);
     s.grow_joined.clear();
