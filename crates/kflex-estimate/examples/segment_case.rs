@@ -6,7 +6,8 @@
 //! `cargo run --release -p kflex-estimate --example segment_case -- CONDITION BACKGROUND THETA D OUT.png`
 //! with CONDITION the index into the goal conditions (0 baseline … 11 yellow
 //! tissue), then those past the goals (12–15) and the edges of IBJAE's
-//! training ranges (16–19), in the order `tests/matrix` lists them;
+//! training ranges (16–19), then the paper's tape (20–23: 20 and 40 % over
+//! the middle, then the distal part), in the order `tests/matrix` lists them;
 //! BACKGROUND colon, stomach or larynx.
 
 #[path = "../tests/matrix/mod.rs"]
@@ -25,6 +26,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .chain(Condition::BEYOND.iter())
         .chain(Condition::TRAINING.iter())
+        .chain(Condition::TAPE.iter())
         .nth(condition.parse()?)
         .ok_or("condition index out of range")?;
     let background = match background.as_str() {
