@@ -444,7 +444,7 @@ fn random_4k_tiles_are_found_exactly() {
         let tiles_only = SegmentParams {
             grow_share: 0.5,
             fill_holes: false,
-            min_component_of_largest: 0.0,
+            min_component_of_total: 0.0,
             ..SegmentParams::default()
         };
         let seg = segment(&rgb, w as u32, h as u32, WHOLE_4K, &tiles_only)
@@ -569,8 +569,8 @@ fn holes_in_the_instrument_are_filled_and_bays_are_not() {
 }
 
 /// Steel apart from the largest part is dropped when it holds less than
-/// `min_component_of_largest` of it, and kept when it holds more (the part
-/// beyond tape over the instrument's middle).
+/// `min_component_of_total` of all the steel found, and kept when it holds
+/// more (the part beyond tape over the instrument's middle).
 #[test]
 fn parts_much_smaller_than_the_instrument_are_dropped() {
     let (w, h) = (200usize, 120usize);
@@ -592,7 +592,7 @@ fn parts_much_smaller_than_the_instrument_are_dropped() {
     assert!(share_set(&seg.full, [140, 10, 154, 30]) < 0.01, "the speck");
     assert!(share_set(&seg.full, [140, 70, 180, 110]) > 0.99, "the part");
     let off = SegmentParams {
-        min_component_of_largest: 0.0,
+        min_component_of_total: 0.0,
         ..SegmentParams::default()
     };
     let seg = segment(&rgb, w as u32, h as u32, whole, &off).unwrap();
@@ -600,6 +600,34 @@ fn parts_much_smaller_than_the_instrument_are_dropped() {
         share_set(&seg.full, [140, 10, 154, 30]) > 0.99,
         "the speck kept"
     );
+}
+
+/// Tape over the middle cuts the instrument into two parts of about the
+/// same size: a glare beside it, as neutral as steel, holds more than a
+/// tenth of either part but less than a tenth of both together, and is
+/// dropped (a share of the largest part kept it: 40 % tape over the
+/// middle, stomach 0° at 35 mm, offset 1100, 0.816 in the region).
+#[test]
+fn a_glare_beside_an_instrument_cut_by_tape_is_dropped() {
+    let (w, h) = (200usize, 120usize);
+    let steel = [150u8, 153, 160];
+    // two parts of 40 × 40 = 1,600 px either side of a gap (the tape, here
+    // tissue), and a glare of 16 × 16 = 256 px: 16 % of a part, 7.4 % of
+    // all three
+    let rgb = blocks(
+        w,
+        h,
+        &[
+            (steel, [0, 40, 40, 80]),
+            (steel, [80, 40, 120, 80]),
+            (steel, [160, 8, 176, 24]),
+        ],
+    );
+    let whole = Roi::whole(w as u32, h as u32);
+    let seg = segment(&rgb, w as u32, h as u32, whole, &SegmentParams::default()).unwrap();
+    assert!(share_set(&seg.full, [0, 40, 40, 80]) > 0.99, "a part");
+    assert!(share_set(&seg.full, [80, 40, 120, 80]) > 0.99, "the other");
+    assert!(share_set(&seg.full, [160, 8, 176, 24]) < 0.01, "the glare");
 }
 
 #[test]

@@ -118,9 +118,9 @@ pub(super) fn fill_holes(s: &mut Scratch) {
 }
 
 /// Clears the instrument's connected components that hold fewer than `min`
-/// pixels or fewer than `share_of_largest` times the largest component's.
-/// Returns the pixels left.
-pub(super) fn keep_components(s: &mut Scratch, min: f32, share_of_largest: f32) -> usize {
+/// pixels or fewer than `share_of_total` times all the components' pixels
+/// together. Returns the pixels left.
+pub(super) fn keep_components(s: &mut Scratch, min: f32, share_of_total: f32) -> usize {
     let Scratch {
         instrument,
         regions,
@@ -140,7 +140,7 @@ pub(super) fn keep_components(s: &mut Scratch, min: f32, share_of_largest: f32) 
     seen.resize(instrument.len(), false);
     component.clear();
     spans.clear();
-    let mut sizes_largest = 0.0f32;
+    let mut total = 0.0f32;
     for &start in roots.iter() {
         let start = start as usize;
         if instrument[start] == 0 || seen[start] {
@@ -162,9 +162,9 @@ pub(super) fn keep_components(s: &mut Scratch, min: f32, share_of_largest: f32) 
         }
         let pixels: f32 = component[first..].iter().map(|&r| regions[r].count).sum();
         spans.push((first, component.len(), pixels));
-        sizes_largest = sizes_largest.max(pixels);
+        total += pixels;
     }
-    let least = min.max(share_of_largest * sizes_largest);
+    let least = min.max(share_of_total * total);
     let mut kept = 0usize;
     for &(first, end, pixels) in spans.iter() {
         if pixels < least {

@@ -143,10 +143,14 @@ pub struct SegmentParams {
     pub fill_holes: bool,
     /// Smallest instrument component kept, as a share of the region of interest.
     pub min_component: f32,
-    /// Smallest instrument component kept, as a share of the largest: the
-    /// instrument is one object, or two where tape hides its middle (the
-    /// part beyond the tape is then a third or more of the rest).
-    pub min_component_of_largest: f32,
+    /// Smallest instrument component kept, as a share of all the
+    /// instrument found (every component together): the instrument is one
+    /// object, or two where tape hides its middle. (A share of the largest
+    /// component, as before 2026-11-29, let a wet glare through where tape
+    /// halved the largest; a configuration may still name it
+    /// `min_component_of_largest`.)
+    #[serde(alias = "min_component_of_largest")]
+    pub min_component_of_total: f32,
     /// The boundary to the pixel: the pixels of the cells that border the
     /// other class each take the class whose colour they are nearer, the
     /// two colours read this far to either side across the boundary, px
@@ -188,7 +192,7 @@ impl Default for SegmentParams {
             highlight_min_value: 0.7,
             fill_holes: true,
             min_component: 0.004,
-            min_component_of_largest: 0.1,
+            min_component_of_total: 0.1,
             refine_reach_px: 4.0,
             refine_contrast: 0.2,
             min_instrument: 0.002,
@@ -331,7 +335,7 @@ pub fn segment(
 ///    enclosed by instrument is instrument
 ///    ([`SegmentParams::fill_holes`]); connected components smaller than
 ///    [`SegmentParams::min_component`] of the region or
-///    [`SegmentParams::min_component_of_largest`] of the largest component
+///    [`SegmentParams::min_component_of_total`] of all the instrument found
 ///    (specular spots and streaks on wet mucosa) are dropped.
 /// 6. **The boundary to the pixel** ([`SegmentParams::refine_reach_px`]):
 ///    steps 2–5 decide 2×2 cells, so their boundary may be a pixel off, and
@@ -456,7 +460,7 @@ impl Segmenter {
     /// `[0, 1]`, `min_relative_value`,
     /// `clip_value` or `saturated_value` outside `[0, 1]`,
     /// `highlight_ratio` outside `[0, 100]`, `highlight_max`,
-    /// `highlight_min_value`, `min_component` or `min_component_of_largest`
+    /// `highlight_min_value`, `min_component` or `min_component_of_total`
     /// outside `[0, 1]`, `refine_reach_px` outside `[0, 64]`,
     /// `refine_contrast` outside `[0, 5]`, `min_instrument` outside
     /// `[0, 1]`, `out` outside `[1, 4096]` px. `min_block` is not checked (blocks stop at 2 px
@@ -489,8 +493,8 @@ impl Segmenter {
         check("highlight_min_value", params.highlight_min_value, 0.0, 1.0)?;
         check("min_component", params.min_component, 0.0, 1.0)?;
         check(
-            "min_component_of_largest",
-            params.min_component_of_largest,
+            "min_component_of_total",
+            params.min_component_of_total,
             0.0,
             1.0,
         )?;
@@ -609,7 +613,7 @@ impl Segmenter {
             graph::fill_holes(s);
         }
         let min_component = (p.min_component * (rw * rh) as f32).ceil();
-        let count = graph::keep_components(s, min_component, p.min_component_of_largest);
+        let count = graph::keep_components(s, min_component, p.min_component_of_total);
         let Scratch {
             cells,
             labels,

@@ -382,7 +382,7 @@ class SegmentParams(_Params):
     highlight_min_value: float
     fill_holes: bool
     min_component: float
-    min_component_of_largest: float
+    min_component_of_total: float
     refine_reach_px: float
     refine_contrast: float
     min_instrument: float
