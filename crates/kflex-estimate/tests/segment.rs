@@ -575,8 +575,8 @@ fn holes_in_the_instrument_are_filled_and_bays_are_not() {
 fn parts_much_smaller_than_the_instrument_are_dropped() {
     let (w, h) = (200usize, 120usize);
     let steel = [150u8, 153, 160];
-    // the largest: 100 × 40 = 4,000 px; a speck of 14 × 20 = 280 px (7 %)
-    // and a part of 40 × 40 = 1,600 px (40 %)
+    // the largest: 100 × 40 = 4,000 px; a speck of 14 × 20 = 280 px (4.8 %
+    // of all three) and a part of 40 × 40 = 1,600 px (27 %)
     let rgb = blocks(
         w,
         h,
@@ -600,6 +600,18 @@ fn parts_much_smaller_than_the_instrument_are_dropped() {
         share_set(&seg.full, [140, 10, 154, 30]) > 0.99,
         "the speck kept"
     );
+    // a share of the whole past the largest's own still keeps the largest
+    let all = SegmentParams {
+        min_component_of_total: 1.0,
+        ..SegmentParams::default()
+    };
+    let seg = segment(&rgb, w as u32, h as u32, whole, &all).unwrap();
+    assert!(share_set(&seg.full, [0, 40, 100, 80]) > 0.99, "the largest");
+    assert!(share_set(&seg.full, [140, 70, 180, 110]) < 0.01, "the part");
+    // the field's old name meant a share of the largest: refused, not
+    // read as the new threshold
+    let old = serde_json::from_str::<SegmentParams>(r#"{"min_component_of_largest": 0.1}"#);
+    assert!(old.is_err());
 }
 
 /// Tape over the middle cuts the instrument into two parts of about the

@@ -119,7 +119,7 @@ pub(super) fn fill_holes(s: &mut Scratch) {
 
 /// Clears the instrument's connected components that hold fewer than `min`
 /// pixels or fewer than `share_of_total` times all the components' pixels
-/// together. Returns the pixels left.
+/// together (the largest stays, whatever the share). Returns the pixels left.
 pub(super) fn keep_components(s: &mut Scratch, min: f32, share_of_total: f32) -> usize {
     let Scratch {
         instrument,
@@ -140,7 +140,7 @@ pub(super) fn keep_components(s: &mut Scratch, min: f32, share_of_total: f32) ->
     seen.resize(instrument.len(), false);
     component.clear();
     spans.clear();
-    let mut total = 0.0f32;
+    let (mut total, mut largest) = (0.0f32, 0.0f32);
     for &start in roots.iter() {
         let start = start as usize;
         if instrument[start] == 0 || seen[start] {
@@ -163,8 +163,11 @@ pub(super) fn keep_components(s: &mut Scratch, min: f32, share_of_total: f32) ->
         let pixels: f32 = component[first..].iter().map(|&r| regions[r].count).sum();
         spans.push((first, component.len(), pixels));
         total += pixels;
+        largest = largest.max(pixels);
     }
-    let least = min.max(share_of_total * total);
+    // never more than the largest: an instrument in many pieces, or a share
+    // above a half, keeps its largest piece
+    let least = min.max((share_of_total * total).min(largest));
     let mut kept = 0usize;
     for &(first, end, pixels) in spans.iter() {
         if pixels < least {

@@ -144,12 +144,12 @@ pub struct SegmentParams {
     /// Smallest instrument component kept, as a share of the region of interest.
     pub min_component: f32,
     /// Smallest instrument component kept, as a share of all the
-    /// instrument found (every component together): the instrument is one
-    /// object, or two where tape hides its middle. (A share of the largest
-    /// component, as before 2026-11-29, let a wet glare through where tape
-    /// halved the largest; a configuration may still name it
-    /// `min_component_of_largest`.)
-    #[serde(alias = "min_component_of_largest")]
+    /// instrument found (every component together; the largest component is
+    /// always kept): the instrument is one object, or two where tape hides
+    /// its middle. Until 2026-11-29 this was a share of the largest
+    /// component, `min_component_of_largest`, which let a wet glare through
+    /// where tape halved the largest; a configuration that names the old
+    /// field is refused, since the same number now means another threshold.
     pub min_component_of_total: f32,
     /// The boundary to the pixel: the pixels of the cells that border the
     /// other class each take the class whose colour they are nearer, the
