@@ -312,7 +312,8 @@ pub fn segment(
 ///    ([`SegmentParams::highlight_ratio`]) take the class of the regions
 ///    around them once the growth of step 5 has run (the clipped tissue
 ///    below voting as tissue; clipped regions that touch vote as one blob,
-///    so a glare ringed by a clipped rim hears the tissue around the rim), except a region with a clipped channel but
+///    so a glare ringed by a clipped rim hears the tissue around the rim),
+///    except a region with a clipped channel but
 ///    an unclipped darkest one whose colour lies at least 0.3 of the way
 ///    from the metal's to the tissue's, where those differ by more than
 ///    [`SegmentParams::grow_separation`] and it lies more than half that
