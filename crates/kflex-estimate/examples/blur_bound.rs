@@ -62,12 +62,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     theta_deg,
                     d_mm,
                 };
-                let (frame, distal) = bench.frame(case, Condition::Baseline);
+                let (frame, parts) = bench.frame(case, Condition::Baseline);
                 let roi = bench.roi_of(case);
                 let found = blurred_cut(&frame.instrument, sigma).crop(roi)?;
                 let truth = frame.instrument.crop(roi)?;
-                let distal = distal.crop(roi)?;
-                let score = Score::of(&found, &truth, &distal);
+                let score = Score::of(&found, &truth, &parts.crop(roi));
                 if !score.meets(GOAL_ROI, GOAL_DISTAL) {
                     under += 1;
                 }

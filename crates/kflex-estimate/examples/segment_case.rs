@@ -45,7 +45,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Ok(offset) = std::env::var("KFLEX_MATRIX_SEED") {
         bench.seed_offset = offset.parse()?;
     }
-    let (frame, distal) = bench.frame(case, condition);
+    let (frame, parts) = bench.frame(case, condition);
     let roi = bench.roi_of(case);
     let truth = frame.instrument.crop(roi)?;
     // as in `robustness_table`: `KFLEX_SEGMENT_PARAMS` overrides the fields it names
@@ -85,7 +85,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // as the robustness matrix scores it: in the region, and on the bend and
     // gripper alone
     if let Some(m) = &found {
-        let s = matrix::Score::of(m, &truth, &distal.crop(roi)?);
+        let s = matrix::Score::of(m, &truth, &parts.crop(roi));
         let distal = s.distal.map_or("not scored".into(), |d| format!("{d:.3}"));
         println!(
             "IoU {:.3} in the region, {distal} on the bend and gripper",

@@ -7,9 +7,9 @@
 mod matrix;
 
 use kflex_estimate::{EstimateError, SegmentParams, Segmenter};
-use kflex_model::Background;
 use kflex_model::Tissue;
-use matrix::{Bench, Condition, cases};
+use kflex_model::{Background, Mask};
+use matrix::{Bench, Case, Condition, Parts, Score, cases};
 
 /// `(condition, least ROI IoU, least distal IoU)`.
 // Measured over the working range (d = 8, 20, 35 mm), each case in the
@@ -36,10 +36,10 @@ const BOUNDS: [(Condition, f64, f64); 12] = [
 /// The paper's tape (`Condition::TAPE`), at the goals: the visible rest of
 /// the instrument, whole (measured 2026-11-29).
 const TAPE_BOUNDS: [(Condition, f64, f64); 4] = [
-    (Condition::TAPE[0], 0.90, 0.85), // 20 % middle: 0.939 / 0.882
-    (Condition::TAPE[1], 0.90, 0.85), // 40 % middle: 0.920 / 0.858
+    (Condition::TAPE[0], 0.90, 0.85), // 20 % middle: 0.939 / 0.890
+    (Condition::TAPE[1], 0.90, 0.85), // 40 % middle: 0.920 / 0.865
     (Condition::TAPE[2], 0.90, 0.85), // 20 % distal: 0.957 / 0.914
-    (Condition::TAPE[3], 0.90, 0.85), // 40 % distal: 0.957 / 0.903
+    (Condition::TAPE[3], 0.90, 0.85), // 40 % distal: 0.957 / 0.916
 ];
 
 /// Frames of the matrix the segmentation calls empty, at most, per tissue
@@ -177,4 +177,70 @@ fn few_cases_fall_short_on_other_backgrounds_200() {
 #[test]
 fn few_cases_fall_short_on_other_backgrounds_300() {
     under_goal_on_other_backgrounds(300);
+}
+
+/// The distal score leaves the shaft out, its taped part too: a taped shaft
+/// pixel taken for instrument is the shaft's fault (it lowers the region's
+/// IoU), not the bend's; a taped pixel of the bend taken for instrument
+/// still lowers the bend's. Before the shaft's taped pixels were known, the
+/// first case read 0.667 on the bend.
+#[test]
+fn a_taped_shaft_pixel_found_does_not_count_against_the_bend() {
+    let (w, h) = (40u32, 20u32);
+    let mask = |keep: &dyn Fn(u32) -> bool| {
+        let data = (0..w * h).map(|i| u8::from(keep(i % w))).collect();
+        Mask::from_raw(w, h, data).unwrap()
+    };
+    // columns 0–9 visible shaft, 10–19 taped shaft, 20–39 the bend (400 px)
+    let truth = mask(&|x| !(10..20).contains(&x));
+    let parts = Parts {
+        distal: mask(&|x| x >= 20),
+        shaft: mask(&|x| x < 20),
+    };
+    // everything found, the taped shaft included
+    let s = Score::of(&mask(&|_| true), &truth, &parts);
+    assert_eq!(s.distal, Some(1.0), "{s:?}");
+    assert!((s.roi - 0.75).abs() < 1e-12, "{s:?}");
+    // the bend's last five columns taped, and found all the same
+    let truth = mask(&|x| x < 10 || (20..35).contains(&x));
+    let parts = Parts {
+        distal: mask(&|x| (20..35).contains(&x)),
+        shaft: mask(&|x| x < 20),
+    };
+    let s = Score::of(&mask(&|x| !(10..20).contains(&x)), &truth, &parts);
+    assert_eq!(s.distal, Some(0.75), "{s:?}");
+}
+
+/// A taped frame's parts: every visible pixel of the instrument is in one
+/// of them, a taped pixel is never in the bend's, and the tapes over the
+/// middle put some of the shaft's taped pixels in the shaft's part (before,
+/// the shaft was read off the visible pixels alone).
+#[test]
+fn the_shaft_part_holds_its_taped_pixels() {
+    let mut bench = Bench::default();
+    let case = Case {
+        background: Background::Colon,
+        theta_deg: 30.0,
+        d_mm: 20.0,
+    };
+    for condition in Condition::TAPE {
+        let (frame, parts) = bench.frame(case, condition);
+        let mut taped_shaft = 0;
+        let pixels = frame
+            .occluder
+            .data()
+            .iter()
+            .zip(frame.instrument.data())
+            .zip(parts.distal.data().iter().zip(parts.shaft.data()));
+        for ((&taped, &visible), (&distal, &shaft)) in pixels {
+            let (visible, distal, shaft) = (visible != 0, distal != 0, shaft != 0);
+            assert!(!(distal && shaft), "{condition:?}: a pixel in both parts");
+            assert_eq!(visible, visible && (distal || shaft), "{condition:?}");
+            assert!(taped == 0 || !distal, "{condition:?}: a taped bend pixel");
+            taped_shaft += usize::from(taped != 0 && shaft);
+        }
+        if matches!(condition, Condition::Tape(_, at) if at == 0.5) {
+            assert!(taped_shaft > 0, "{condition:?}: no taped shaft pixel");
+        }
+    }
 }

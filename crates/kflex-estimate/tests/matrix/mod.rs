@@ -142,6 +142,26 @@ impl Condition {
     }
 }
 
+/// The instrument's parts in a frame, for the distal score.
+#[derive(Debug, Clone)]
+pub struct Parts {
+    /// The bend and gripper's visible pixels.
+    pub distal: Mask,
+    /// The straight shaft's own pixels, visible or taped (not the bend's or
+    /// the gripper's, wherever they lie in front of it).
+    pub shaft: Mask,
+}
+
+impl Parts {
+    /// Both masks cropped to `roi`.
+    pub fn crop(&self, roi: Roi) -> Parts {
+        Parts {
+            distal: self.distal.crop(roi).expect("crop"),
+            shaft: self.shaft.crop(roi).expect("crop"),
+        }
+    }
+}
+
 /// One scored frame.
 #[derive(Debug, Clone, Copy)]
 pub struct Score {
@@ -154,20 +174,25 @@ pub struct Score {
 
 impl Score {
     /// The score of mask `found` against the visible instrument `truth` and
-    /// its bend and gripper `distal`, all three of one region.
-    pub fn of(found: &Mask, truth: &Mask, distal: &Mask) -> Score {
+    /// the instrument's `parts`, all of one region.
+    pub fn of(found: &Mask, truth: &Mask, parts: &Parts) -> Score {
         let roi = found.iou(truth).expect("same size");
-        // leave the shaft's own pixels out of both masks
+        // leave the shaft's own pixels out of both masks, taped ones too: a
+        // taped shaft pixel found is a fault of the shaft, not of the bend
         let (mut inter, mut union) = (0usize, 0usize);
-        for ((&s, &t), &d) in found.data().iter().zip(truth.data()).zip(distal.data()) {
-            let shaft = t != 0 && d == 0;
-            if shaft {
+        let pixels = found
+            .data()
+            .iter()
+            .zip(parts.distal.data())
+            .zip(parts.shaft.data());
+        for ((&s, &d), &shaft) in pixels {
+            if shaft != 0 {
                 continue;
             }
             inter += usize::from(s != 0 && d != 0);
             union += usize::from(s != 0 || d != 0);
         }
-        let distal = (distal.count() >= MIN_DISTAL_PX).then(|| inter as f64 / union as f64);
+        let distal = (parts.distal.count() >= MIN_DISTAL_PX).then(|| inter as f64 / union as f64);
         Score { roi, distal }
     }
 
@@ -266,9 +291,10 @@ impl Bench {
         (3 + background as u64).wrapping_add(self.seed_offset)
     }
 
-    /// The frame of `case` under `condition`, with the distal-only truth
-    /// (the instrument's visible pixels that are not the straight shaft).
-    pub fn frame(&mut self, case: Case, condition: Condition) -> (Frame, Mask) {
+    /// The frame of `case` under `condition`, with the instrument's parts:
+    /// the visible pixels that are not the straight shaft, and the shaft's
+    /// own, visible or taped.
+    pub fn frame(&mut self, case: Case, condition: Condition) -> (Frame, Parts) {
         let shape = Instrument::kflex()
             .shape(case.theta_deg, case.d_mm)
             .expect("pose in the workspace");
@@ -284,18 +310,25 @@ impl Bench {
         self.raster
             .silhouette(&self.camera, &distal_shape, &mut distal)
             .expect("silhouette");
-        let distal_visible: Vec<u8> = distal
+        let (mut distal_visible, mut shaft) = (Vec::new(), Vec::new());
+        let pixels = distal
             .data()
             .iter()
             .zip(frame.instrument.data())
-            .map(|(&a, &b)| u8::from(a != 0 && b != 0))
-            .collect();
-        let distal = Mask::from_raw(w, h, distal_visible).expect("mask");
+            .zip(frame.occluder.data());
+        for ((&d, &visible), &taped) in pixels {
+            distal_visible.push(u8::from(d != 0 && visible != 0));
+            shaft.push(u8::from(d == 0 && (visible != 0 || taped != 0)));
+        }
+        let parts = Parts {
+            distal: Mask::from_raw(w, h, distal_visible).expect("mask"),
+            shaft: Mask::from_raw(w, h, shaft).expect("mask"),
+        };
         let seed = (case.theta_deg.to_bits() ^ case.d_mm.to_bits().rotate_left(17))
             .wrapping_add(case.background as u64)
             | 1;
         perturb(&mut frame, self.roi_of(case), condition, seed);
-        (frame, distal)
+        (frame, parts)
     }
 
     /// Segments the frame of `case` under `condition` and scores it.
@@ -308,12 +341,11 @@ impl Bench {
         case: Case,
         condition: Condition,
     ) -> Result<Score, EstimateError> {
-        let (frame, distal) = self.frame(case, condition);
+        let (frame, parts) = self.frame(case, condition);
         let roi = self.roi_of(case);
         let seg = segmenter.segment(&frame.rgb, frame.width, frame.height, roi)?;
         let truth = frame.instrument.crop(roi).expect("crop");
-        let distal = distal.crop(roi).expect("crop");
-        Ok(Score::of(&seg.full, &truth, &distal))
+        Ok(Score::of(&seg.full, &truth, &parts.crop(roi)))
     }
 
     /// A frame of `background` without the instrument, its tissue coloured
