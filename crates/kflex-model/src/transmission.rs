@@ -218,6 +218,16 @@ const MAX_ITERATIONS: usize = 100;
 /// A tendon is solved when its proximal end is within this of the motor, mm.
 pub(crate) const POSITION_TOL_MM: f64 = 1e-10;
 
+/// A tendon's solve that has narrowed its tension to the arithmetic's
+/// resolution is taken as converged where its proximal end lies within this
+/// of the motor, mm (0.06 mdeg of bend),
+const RESOLVED_MM: f64 = 1e-6;
+/// or within this many times the position that resolution moves it (the
+/// slope `du/dT` times the bracket's width): near a fold of the friction
+/// states a push at the tip makes the slope 10⁷ mm/N and more, and the
+/// bracket of 10⁻¹² N leaves 10⁻⁵ mm (10 nm) that no tension resolves.
+const RESOLUTION_SLOPES: f64 = 4.0;
+
 /// A solved trial state is reused for anchor positions this close to where
 /// it was solved, mm (the joint's last Newton step is below 1e-10 rad).
 const SOLVED_REUSE_MM: f64 = 1e-9;
@@ -381,7 +391,12 @@ impl Tendon {
             let r = m.residual_mm;
             if r.abs() <= POSITION_TOL_MM || hi - lo <= 1e-13 * (1.0 + t.abs()) {
                 self.tension = t;
-                return (m.by_anchor / m.by_tension, r.abs() <= 1e-6);
+                // the bracket at the tension's resolution: where the proximal
+                // end moves steeply with the tension (near a fold of the
+                // friction states, under a push at the tip), the position
+                // cannot land closer than the slope times that resolution
+                let resolved = RESOLVED_MM.max(RESOLUTION_SLOPES * m.by_tension * (hi - lo));
+                return (m.by_anchor / m.by_tension, r.abs() <= resolved);
             }
             if r > 0.0 {
                 hi = t;
