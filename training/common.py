@@ -123,9 +123,12 @@ def onnx_diff(path: Path, model: torch.nn.Module, x: torch.Tensor) -> dict[str, 
     """How far onnxruntime's output for ``x`` (CPU) is from the torch
     model's own (eval mode, CPU): the largest absolute difference, the
     largest relative to ``max(1, |torch|)``, and whether they are equal
-    within 1e-5 (``numpy.allclose`` with rtol = atol = 1e-5: float32 sums
-    taken in another order differ in the last places of the output's
-    magnitude)."""
+    within 1e-4 (``numpy.allclose`` with rtol = atol = 1e-4: float32 sums
+    taken in another order differ in the last places of the intermediate
+    sums' magnitude, not the output's: KBJAE's smoke model, inputs up to
+    100 through three 200-wide layers, differed by 3.2e-5 deg at outputs
+    near 1.7 deg on 2026-11-29, after the plant's refit changed its data;
+    1e-4 deg is four orders below KBJAE's accuracy)."""
     import onnxruntime as ort
 
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
@@ -137,7 +140,7 @@ def onnx_diff(path: Path, model: torch.nn.Module, x: torch.Tensor) -> dict[str, 
     return {
         "max_abs_diff_vs_torch": float(np.max(diff)),
         "max_rel_diff_vs_torch": float(np.max(diff / np.maximum(1.0, np.abs(want)))),
-        "equal_within_1e-5": bool(np.allclose(got, want, rtol=1e-5, atol=1e-5)),
+        "equal_within_1e-4": bool(np.allclose(got, want, rtol=1e-4, atol=1e-4)),
         "probe_inputs": len(x),
         "runtime": "onnxruntime CPUExecutionProvider",
     }

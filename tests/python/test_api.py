@@ -6,6 +6,7 @@ No plant figure is written down here: the checks hold for any calibration.
 from __future__ import annotations
 
 import copy
+import math
 import threading
 import time
 
@@ -85,7 +86,9 @@ def test_bad_values_are_value_errors_naming_the_value():
 
 
 def test_out_of_range_is_a_range_error_with_its_bounds():
-    config = kflex.PlantConfig(sheath_deg=5000.0)
+    # μ 0.3: the configuration's own bound, 3600 deg, binds (at the default μ
+    # the element chain's, 20 elements / μ rad of wrap, binds first)
+    config = kflex.PlantConfig(sheath_deg=5000.0, sheath={"friction_coefficient": 0.3})
     with pytest.raises(kflex.RangeError) as info:
         config.validate()
     err = info.value
@@ -95,6 +98,13 @@ def test_out_of_range_is_a_range_error_with_its_bounds():
     assert str(err) == "sheath_deg = 5000 is out of range: must be in [0, 3600]"
     with pytest.raises(kflex.RangeError, match="sheath_deg = 5000"):
         kflex.Plant(config)
+    # at the default μ, the chain's bound, with the route wrap taken off
+    default = kflex.PlantConfig(sheath_deg=5000.0)
+    with pytest.raises(kflex.RangeError) as info:
+        default.validate()
+    mu, wrap = default.sheath.friction_coefficient, default.sheath.route_wrap_deg
+    chain = math.degrees(default.sheath.elements / mu) - wrap
+    assert info.value.max == pytest.approx(min(3600.0, chain), rel=1e-9)
 
 
 def test_step_refuses_bad_ticks_and_leaves_the_plant_as_it_was():

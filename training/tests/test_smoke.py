@@ -73,7 +73,7 @@ def test_kbjae_smoke_exports_the_contract_and_matches_torch(kbjae):
         # data); 1e-4 deg is four orders below KBJAE's accuracy
         assert_equal_to_torch(path, kbjae["model"], x, atol=1e-4)
     card = check_card(path, "kbjae.card.json", ["theta_and_rate"], ["theta_error"])
-    assert card["onnx"]["equal_within_1e-5"] is True
+    assert card["onnx"]["equal_within_1e-4"] is True
     assert card["architecture"]["layers"] == [2, 200, 200, 200, 1]
     assert card["architecture"]["dropout"]["drop_probability"] == pytest.approx(0.3)
     onnx.checker.check_model(str(path), full_check=True)
@@ -109,7 +109,7 @@ def test_scnn_smoke_exports_the_contract_and_matches_torch(scnn):
         assert_equal_to_torch(path, scnn["model"], x)
     card = check_card(path, "scnn.card.json", ["silhouette"], ["embedding"])
     assert card["onnx"]["max_abs_diff_vs_torch"] <= 1e-5
-    assert card["onnx"]["equal_within_1e-5"] is True
+    assert card["onnx"]["equal_within_1e-4"] is True
 
 
 def test_scnn_smoke_evaluates_retrieval_and_the_hamming_baseline(scnn):

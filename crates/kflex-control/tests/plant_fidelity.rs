@@ -77,11 +77,11 @@ fn rmse_grows_with_the_bend_and_the_loop_width_saturates() {
     // The goals: RMSE growing at every 15 deg from 0 to 270, the loop width
     // growing up to 180 deg and staying within 10 % of its largest beyond.
     // Measured (CALIBRATION.md): the RMSE grows at every step; the width
-    // grows up to about 60 deg (by 13 %), dips by 4 % to 105 deg and is back
-    // within 0.3 % of its largest by 180 deg, then within 5.5 % of it out to
-    // 270 deg: it grows up to 180 deg read at the paper's sheath angles (the
-    // fit's goal), not at every step, and far less than the paper's (9.2 to
-    // 18.3 deg).
+    // grows up to 75 deg (by 24 %), dips by 2.3 % to 105 deg, grows again to
+    // its largest at 165 deg, then stays within 8 % of it out to 270 deg: it
+    // grows up to 180 deg read at the paper's sheath angles (the fit's
+    // goal), not at every step, and far less than the paper's (9.2 to 18.3
+    // deg). The plant before the refit of 2026-11-29 dipped by 4 %.
     let sheaths: Vec<f64> = (0..=18).map(|k| 15.0 * f64::from(k)).collect();
     let rows = run(OpenLoopGrid {
         sheaths_deg: sheaths,
@@ -114,6 +114,17 @@ fn rmse_grows_with_the_bend_and_the_loop_width_saturates() {
         widths[0] < widths[6] && widths[6] < widths[12],
         "{widths:?}"
     );
+    // ... never falling on the way by more than 3 % below the widest so far
+    // (the goal is growth at every step; the plant before dipped by 4 %)
+    let mut widest = 0.0f64;
+    for (k, w) in widths.iter().enumerate().take(13) {
+        widest = widest.max(*w);
+        assert!(
+            *w >= 0.97 * widest,
+            "loop width {w} at {} deg is more than 3 % below {widest} before it",
+            15 * k
+        );
+    }
     // ... and then saturates rather than collapsing: from its peak on (the
     // goal asks it beyond 180 deg) within 10 % of its largest
     for (k, w) in widths.iter().enumerate().skip(peak) {

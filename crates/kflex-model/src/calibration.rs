@@ -23,18 +23,18 @@ impl Default for SheathParams {
 /// and the pre-sliding displacement (with the contacts' stiffness below, five
 /// in all). CALIBRATION.md gives each value's source or range.
 pub(crate) const FITTED_SHEATH: SheathParams = SheathParams {
-    friction_coefficient: 0.2999,
+    friction_coefficient: 0.4568,
     route_wrap_deg: 10.0,
     pretension_n: 3.0,
     tendon_stiffness_n_per_mm: 10.5,
     distal_stiffness_n_per_mm: 270.0,
-    drive_backlash_mm: 0.1816,
+    drive_backlash_mm: 0.166,
     backlash_engagement_mm: 0.05,
-    presliding_mm: 0.0119,
+    presliding_mm: 0.0121,
     elements: 20,
-    sheath_path_mm_per_rad: -0.1262,
+    sheath_path_mm_per_rad: -0.1028,
 };
 
 /// Fitted bending stiffness of one rolling contact, N·mm/rad. The pretension's
 /// straightening moment, `2T₀(R − B) ≈ 10.8` N·mm/rad per contact, adds to it.
-pub(crate) const FITTED_CONTACT_STIFFNESS: f64 = 25.26;
+pub(crate) const FITTED_CONTACT_STIFFNESS: f64 = 22.69;

@@ -24,7 +24,7 @@ use crate::workspace::{TranslationParams, check_pose};
 pub const BUILD_SHARE: f64 = 1.0 / 3.0;
 
 /// How far from the middle of the drive's play [`PlantConfig::perturbed`]
-/// homes the drive, as a share of the play's half-width (uniform): ±4 deg of
+/// homes the drive, as a share of the play's half-width (uniform): ±3.6 deg of
 /// bend on the default drive. The paper brackets it (CALIBRATION.md, "Run-
 /// to-run variation"): its uncompensated RMSE spread at a straight sheath
 /// needs at least about 0.55, its KBJAE row, which no feedforward estimator

@@ -591,7 +591,7 @@ fn joint_follows_its_path_under_compressive_tip_loads() {
                     },
                     0.01,
                 )
-                .unwrap();
+                .unwrap_or_else(|e| panic!("sheath {sheath_deg}, load {load:?}, tick {k}: {e}"));
             // tick 0 settles under the load from the unloaded reset pose; from then on, continuity
             assert!(
                 k == 0 || (s.theta_a_deg - last).abs() < 5.0 || s.theta_a_deg.abs() >= 119.999,
@@ -672,6 +672,7 @@ fn a_sheath_angle_the_config_accepts_every_repeat_accepts() {
         ..PlantConfig::default()
     };
     config.sheath.elements = 10;
+    config.sheath.friction_coefficient = 0.3;
     Plant::new(config).unwrap();
     let mut held = 0;
     for seed in 0..40 {
