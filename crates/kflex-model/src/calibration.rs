@@ -1,10 +1,11 @@
 //! Default parameters fitted to the paper's uncompensated measurements.
 //!
-//! Produced by `make fit` (`cargo run --release -p kflex-control --example
-//! fit_calibration`), which minimises the squared relative error to Table IX's
-//! "none" row within plausible boxes, held to the tolerances and to the loop
-//! shape's goals (saturating widths, rounded transitions); the residuals are
-//! in the crate docs (`CALIBRATION.md`).
+//! Produced by `make fit` (`KFLEX_FIT_PROTOCOL=1 cargo run --release -p
+//! kflex-control --example fit_calibration`), which minimises the squared
+//! relative error to Table IX's "none" row within plausible boxes, held to
+//! the tolerances, to the loop shape's goals (saturating widths, rounded
+//! transitions) and to `kflex-cli run`'s protocol; the residuals are in the
+//! crate docs (`CALIBRATION.md`).
 
 use crate::transmission::SheathParams;
 
