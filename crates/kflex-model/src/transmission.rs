@@ -220,12 +220,13 @@ pub(crate) const POSITION_TOL_MM: f64 = 1e-10;
 
 /// A tendon's solve that has narrowed its tension to the arithmetic's
 /// resolution is taken as converged where its proximal end lies within this
-/// of the motor, mm (0.06 mdeg of bend),
+/// of the motor, mm (0.04 mdeg of bend: 0.182 mm of stroke is 6.5 deg),
 const RESOLVED_MM: f64 = 1e-6;
 /// or within this many times the position that resolution moves it (the
 /// slope `du/dT` times the bracket's width): near a fold of the friction
 /// states a push at the tip makes the slope 10⁷ mm/N and more, and the
-/// bracket of 10⁻¹² N leaves 10⁻⁵ mm (10 nm) that no tension resolves.
+/// bracket of 10⁻¹² N leaves 10⁻⁵ mm (10 nm, 0.4 mdeg) that no tension
+/// resolves.
 const RESOLUTION_SLOPES: f64 = 4.0;
 
 /// A solved trial state is reused for anchor positions this close to where
