@@ -4,10 +4,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use kflex_estimate::{SegmentParams, segment};
+use kflex_estimate::{SegmentParams, Segmentation, segment};
 use kflex_model::{
-    Background, Camera, FrameParams, Instrument, Intrinsics, Mask, Occlusion, Rasterizer,
-    SceneRenderer, Tissue, WorkingRegions,
+    Background, Camera, Frame, FrameParams, Instrument, Intrinsics, Mask, Occlusion, Rasterizer,
+    Roi, SceneRenderer, Tissue, WorkingRegions,
 };
 
 #[derive(Debug, Args)]
@@ -100,6 +100,12 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     let mut silhouette = Mask::new(48, 48)?;
     Rasterizer::new().silhouette(&roi_camera, &shape, &mut silhouette)?;
 
+    // the segmentation first, then the files: every failure of the
+    // segmentation is the command's failure (non-zero exit); the frame's
+    // PNGs are written all the same, to look at, and the segmentation's
+    // from an earlier render in the folder are removed, so that the folder
+    // never holds a segmentation of another frame
+    let segmented = segment_frame(&frame, roi, args.occlusion);
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let rgb = image::RgbImage::from_raw(frame.width, frame.height, frame.rgb.clone())
@@ -108,13 +114,52 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     save_mask(&args.out, "silhouette_48.png", &silhouette)?;
     save_mask(&args.out, "instrument_mask.png", &frame.instrument)?;
     save_mask(&args.out, "occluder_mask.png", &frame.occluder)?;
-    // every failure of the segmentation is the command's failure (non-zero
-    // exit): the PNGs of the frame are written first, to look at
+    let (seg, iou) = match segmented {
+        Ok(done) => done,
+        Err(e) => {
+            for name in SEGMENTATION_FILES {
+                let stale = args.out.join(name);
+                match std::fs::remove_file(&stale) {
+                    Ok(()) => eprintln!(
+                        "removed {}: it held another frame's segmentation",
+                        stale.display()
+                    ),
+                    Err(err) if err.kind() == std::io::ErrorKind::NotFound => {}
+                    Err(err) => {
+                        return Err(e.context(format!(
+                            "and {} (another frame's segmentation) could not be removed: {err}",
+                            stale.display()
+                        )));
+                    }
+                }
+            }
+            return Err(e);
+        }
+    };
+    println!(
+        "region of interest: {}×{} px at ({}, {})",
+        roi.width, roi.height, roi.x0, roi.y0
+    );
+    save_mask(&args.out, SEGMENTATION_FILES[0], &seg.full)?;
+    save_mask(&args.out, SEGMENTATION_FILES[1], &seg.small)?;
+    println!("segmentation: IoU {iou:.3} with the visible instrument in the region of interest");
+    println!(
+        "wrote frame.png, silhouette_48.png, instrument_mask.png, occluder_mask.png and the segmentation to {}",
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// The segmentation's files, at the region's resolution and at 48×48.
+const SEGMENTATION_FILES: [&str; 2] = ["segmentation_roi.png", "segmentation_48.png"];
+
+/// Segments `frame`'s region of interest `roi`: the segmentation and its IoU
+/// with the visible instrument there, or why there is none.
+fn segment_frame(frame: &Frame, roi: Roi, occlusion: f64) -> Result<(Segmentation, f64)> {
     roi.check_within(frame.width, frame.height)
         .with_context(|| {
             format!(
-                "the region of interest \
-             {}×{} px at ({}, {}) does not fit the {}×{} frame",
+                "the region of interest {}×{} px at ({}, {}) does not fit the {}×{} frame",
                 roi.width, roi.height, roi.x0, roi.y0, frame.width, frame.height
             )
         })?;
@@ -127,14 +172,10 @@ pub fn render(args: &RenderArgs) -> Result<()> {
             roi.height,
             roi.x0,
             roi.y0,
-            args.occlusion,
+            occlusion,
             frame.occluder.crop(roi)?.count()
         );
     }
-    println!(
-        "region of interest: {}×{} px at ({}, {})",
-        roi.width, roi.height, roi.x0, roi.y0
-    );
     let seg = segment(
         &frame.rgb,
         frame.width,
@@ -143,17 +184,8 @@ pub fn render(args: &RenderArgs) -> Result<()> {
         &SegmentParams::default(),
     )
     .context("segmentation")?;
-    save_mask(&args.out, "segmentation_roi.png", &seg.full)?;
-    save_mask(&args.out, "segmentation_48.png", &seg.small)?;
-    println!(
-        "segmentation: IoU {:.3} with the visible instrument in the region of interest",
-        seg.full.iou(&truth)?
-    );
-    println!(
-        "wrote frame.png, silhouette_48.png, instrument_mask.png, occluder_mask.png and the segmentation to {}",
-        args.out.display()
-    );
-    Ok(())
+    let iou = seg.full.iou(&truth)?;
+    Ok((seg, iou))
 }
 
 fn save_mask(dir: &Path, name: &str, mask: &Mask) -> Result<()> {
@@ -169,7 +201,9 @@ fn save_mask(dir: &Path, name: &str, mask: &Mask) -> Result<()> {
 /// Writes through a temporary file in the same folder, then renames: no half-written PNG.
 fn save(dir: &Path, name: &str, write: impl Fn(&Path) -> image::ImageResult<()>) -> Result<()> {
     let path = dir.join(name);
-    let tmp = dir.join(format!(".{name}.tmp.png"));
+    // the process's own temporary name: two renders into one folder do not
+    // write through the same file
+    let tmp = dir.join(format!(".{name}.{}.tmp.png", std::process::id()));
     if let Err(e) = write(&tmp) {
         let _ = std::fs::remove_file(&tmp);
         bail!("writing {}: {e}", path.display());

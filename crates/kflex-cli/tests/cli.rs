@@ -565,7 +565,9 @@ fn render_hd_segments_in_its_own_region() {
 /// asked), then a clear non-zero error naming the cause, not "no
 /// instrument" with exit code 0; no segmentation file is left. Fully taped,
 /// the renderer says so before the segmentation runs; under noise of σ 1
-/// on the [0, 1] image the segmentation itself finds nothing.
+/// on the [0, 1] image the segmentation itself finds nothing. Rendered into
+/// a folder that holds an earlier render's files, the failing render leaves
+/// no segmentation of the earlier frame beside its own frame.
 #[test]
 fn a_frame_with_nothing_to_segment_is_an_error() {
     for (name, flag, value, cause) in [
@@ -584,10 +586,22 @@ fn a_frame_with_nothing_to_segment_is_an_error() {
     ] {
         let dir = scratch(name);
         let d = dir.to_str().unwrap();
+        let earlier = kflex(&["render", "--out", d]);
+        assert!(earlier.status.success(), "{name}: the earlier render");
+        let earlier_frame = std::fs::read(dir.join("frame.png")).unwrap();
+        for file in ["segmentation_roi.png", "segmentation_48.png"] {
+            assert!(dir.join(file).exists(), "{name}: the earlier {file}");
+        }
         assert_refused(&["render", flag, value, "--out", d], cause);
-        assert!(dir.join("frame.png").exists(), "{name}");
+        let frame = std::fs::read(dir.join("frame.png")).unwrap();
+        assert_ne!(frame, earlier_frame, "{name}: the failing render's frame is written");
         for file in ["segmentation_roi.png", "segmentation_48.png"] {
             assert!(!dir.join(file).exists(), "{name}: {file}");
+        }
+        // no temporary file is left either
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let name = entry.unwrap().file_name();
+            assert!(!name.to_string_lossy().contains(".tmp"), "{name:?}");
         }
     }
 }
