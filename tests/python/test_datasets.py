@@ -167,6 +167,20 @@ def test_npz_round_trip_with_its_card(tmp_path, pairs):
     json.loads(kflex.npz.card_path(path).read_text())
 
 
+def test_npz_save_with_a_card_json_cannot_hold_keeps_the_earlier_set(tmp_path, pairs):
+    _, a, card = pairs
+    path = kflex.npz.save(tmp_path / "pairs.npz", a, card)
+    before = (path.read_bytes(), kflex.npz.card_path(path).read_text())
+    smaller = {name: v[:1] for name, v in a.items()}
+    with pytest.raises(TypeError, match="card"):
+        kflex.npz.save(path, smaller, {**card, "amplitudes": np.array([1.0, 2.0])})
+    # neither file was touched: the earlier set still loads, as it was
+    assert (path.read_bytes(), kflex.npz.card_path(path).read_text()) == before
+    back, _ = kflex.npz.load(path)
+    assert all(np.array_equal(back[name], a[name]) for name in a)
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
 # ---- equal to Rust -----------------------------------------------------------
 
 

@@ -71,16 +71,23 @@ def save(
     ``compress=False``) and ``card`` with ``file``, ``bytes`` and ``sha256``
     added to ``NAME.card.json`` beside it; both atomically. Returns the path.
 
-    Raises ``ValueError`` for a path that does not end in ``.npz`` or no arrays.
+    Raises ``ValueError`` for a path that does not end in ``.npz`` or no
+    arrays, and ``TypeError`` for a card that JSON cannot hold (a numpy
+    array, say: give ``.tolist()``); either before any file is touched, so
+    that an earlier data set at ``path`` and its card stay as they were.
     """
     target = Path(path)
     if target.suffix != ".npz":
         raise ValueError(f"{target}: a data set file ends in .npz")
     if not arrays:
         raise ValueError("no arrays to save")
+    full = dict(card)
+    try:
+        json.dumps(full, sort_keys=True)
+    except (TypeError, ValueError) as e:
+        raise TypeError(f"{card_path(target)}: the card must hold only what JSON can: {e}") from e
     savez = np.savez_compressed if compress else np.savez
     write_atomically(target, lambda f: savez(f, **dict(arrays)))
-    full = dict(card)
     full.update(file=target.name, bytes=target.stat().st_size, sha256=sha256(target))
     text = json.dumps(full, indent=2, sort_keys=True) + "\n"
     write_atomically(card_path(target), lambda f: f.write(text.encode()))
