@@ -594,7 +594,10 @@ fn a_frame_with_nothing_to_segment_is_an_error() {
         }
         assert_refused(&["render", flag, value, "--out", d], cause);
         let frame = std::fs::read(dir.join("frame.png")).unwrap();
-        assert_ne!(frame, earlier_frame, "{name}: the failing render's frame is written");
+        assert_ne!(
+            frame, earlier_frame,
+            "{name}: the failing render's frame is written"
+        );
         for file in ["segmentation_roi.png", "segmentation_48.png"] {
             assert!(!dir.join(file).exists(), "{name}: {file}");
         }
