@@ -49,6 +49,16 @@ impl Sine {
 
     fn sample(&self, t: f64) -> Sample {
         let w = std::f64::consts::TAU * self.frequency_hz;
+        // past about 10^15 rad the phase has lost a tenth of a radian to
+        // rounding (and past f64's range it is infinite, whose sine is NaN):
+        // there the time is taken modulo the period (exact in floating
+        // point), which keeps the sample finite; below, the phase is the
+        // plain product, as it always was
+        let t = if (w * t).abs() < 1e15 {
+            t
+        } else {
+            t.rem_euclid(self.period_s())
+        };
         let (s, c) = (w * t + self.phase_rad).sin_cos();
         Sample {
             theta_d_deg: self.offset_deg + self.amplitude_deg * s,
@@ -491,5 +501,57 @@ mod tests {
         };
         let duration = slowest.sampler().unwrap().natural_duration_s().unwrap();
         assert!(duration.is_finite() && duration > 0.0);
+    }
+
+    /// Every finite time gives a finite command: a sine's phase `2πft`
+    /// overflowed to infinity at t = 1e308 (1 Hz), whose sine is NaN.
+    #[test]
+    fn a_far_time_gives_a_finite_command() {
+        let kinds = [
+            Trajectory::Sine(Sine {
+                frequency_hz: 1.0,
+                ..Sine::PAPER
+            }),
+            Trajectory::BandLimited {
+                min_deg: 0.0,
+                max_deg: 50.0,
+                cutoff_hz: 2.0,
+                components: 8,
+                seed: 3,
+            },
+            Trajectory::Steps {
+                min_deg: 0.0,
+                max_deg: 50.0,
+                hold_s: 1.0,
+                ramp_s: 0.5,
+                seed: 3,
+            },
+            Trajectory::PeriodicSet {
+                legs: vec![(35.0, 0.2)],
+                cycles_per_leg: 2,
+            },
+        ];
+        for kind in kinds {
+            let sampler = kind.sampler().unwrap();
+            for t in [1e15, 1e20, 1e300, 1e308, f64::MAX] {
+                let s = sampler.sample(t);
+                assert!(
+                    s.theta_d_deg.is_finite() && s.theta_d_rate_deg_per_s.is_finite(),
+                    "{kind:?} at {t}: {s:?}"
+                );
+                assert!(
+                    (-360.0..=360.0).contains(&s.theta_d_deg),
+                    "{kind:?} at {t}: {s:?}"
+                );
+            }
+        }
+        // below 1e15 rad of phase the sample is the plain product's, as before
+        let sine = Sine::PAPER;
+        let t = 1.0e6;
+        let w = std::f64::consts::TAU * sine.frequency_hz;
+        assert_eq!(
+            sine.sample(t).theta_d_deg,
+            sine.offset_deg + sine.amplitude_deg * (w * t).sin()
+        );
     }
 }
