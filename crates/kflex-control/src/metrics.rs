@@ -152,14 +152,22 @@ impl MeanStd {
     /// Of a non-empty list.
     ///
     /// # Errors
-    /// [`ControlError::NotEnoughData`] for an empty list. Non-finite values
-    /// are not checked: they give a non-finite mean or deviation.
+    /// [`ControlError::NotEnoughData`] for an empty list;
+    /// [`ControlError::NonFiniteSample`] for the first NaN or infinite value
+    /// (a table's mean is never NaN).
     pub fn of(values: &[f64]) -> Result<Self> {
         if values.is_empty() {
             return Err(ControlError::NotEnoughData {
                 metric: "mean",
                 needed: "at least one value",
                 got: 0,
+            });
+        }
+        if let Some((index, &value)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(ControlError::NonFiniteSample {
+                metric: "mean",
+                index,
+                value,
             });
         }
         let n = values.len() as f64;
@@ -283,6 +291,14 @@ mod tests {
             Err(ControlError::NotEnoughData {
                 metric: "mean",
                 got: 0,
+                ..
+            })
+        ));
+        assert!(matches!(
+            MeanStd::of(&[1.0, f64::NAN, f64::INFINITY]),
+            Err(ControlError::NonFiniteSample {
+                metric: "mean",
+                index: 1,
                 ..
             })
         ));
