@@ -201,6 +201,10 @@ def test_trajectory_sample_keeps_shape_and_scalars():
     assert theta.shape == rate.shape == (3, 4) and theta.dtype == np.float64
     with pytest.raises(kflex.RangeError, match="frequency_hz"):
         kflex.Trajectory(kind="sine", amplitude_deg=1.0, offset_deg=0.0, frequency_hz=-1.0, phase_rad=0.0).sample(0.0)
+    # a far time gives a finite command (2πft overflowed to inf at 1e308 s)
+    fast = kflex.Trajectory(kind="sine", amplitude_deg=25.0, offset_deg=25.0, frequency_hz=1.0, phase_rad=0.0)
+    theta, rate = fast.sample(np.array([1e20, 1e308]))
+    assert np.all(np.isfinite(theta)) and np.all(np.isfinite(rate)) and np.all((theta >= 0) & (theta <= 50))
 
 
 # ---- kinematics ------------------------------------------------------------
@@ -228,6 +232,14 @@ def test_kinematics_scalars_arrays_and_errors():
         kflex.TendonGeometry(n_segments=0).theta_rad_from_delta_l_a(0.0, 1.0)
     with pytest.raises(TypeError, match="got dtype int64"):
         g.delta_l_a_mm(np.arange(3))
+    # a stroke is a motor's command: a NaN or infinite bend is refused, not
+    # carried through, and so is a geometry that makes every stroke NaN
+    for f in (g.delta_l_a_mm, g.delta_l_b_mm, g.differential_stroke_mm, g.common_mode_mm):
+        for bad in (float("nan"), float("inf"), np.array([0.1, np.nan])):
+            with pytest.raises(ValueError, match="theta_rad"):
+                f(bad)
+        with pytest.raises(kflex.RangeError, match="n_segments"):
+            getattr(kflex.TendonGeometry(n_segments=0), f.__name__)(0.3)
 
 
 # ---- camera, rendering, segmentation ------------------------------------

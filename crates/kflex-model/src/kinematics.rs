@@ -47,6 +47,22 @@ impl Default for TendonGeometry {
 }
 
 impl TendonGeometry {
+    /// Checks the parameters alone, the first part of
+    /// [`TendonGeometry::validate`]: within them Eq. 1–2 and the strokes
+    /// below are finite at every finite bend.
+    ///
+    /// # Errors
+    /// [`ModelError::OutOfRange`] naming the first field out of its range
+    /// (`n_segments` outside `[1, 16]`, `r_mm` outside `(0, 100)` mm, `b_mm`
+    /// outside `[0, r_mm)` mm, `tendon_offset_mm` outside `(0, 100)` mm).
+    pub fn validate_parameters(&self) -> Result<()> {
+        Bounds::closed(1.0, 16.0).check("n_segments", f64::from(self.n_segments))?;
+        Bounds::open(0.0, 100.0).check("r_mm", self.r_mm)?;
+        Bounds::closed_open(0.0, self.r_mm).check("b_mm", self.b_mm)?;
+        Bounds::open(0.0, 100.0).check("tendon_offset_mm", self.tendon_offset_mm)?;
+        Ok(())
+    }
+
     /// Checks the parameters and that Eq. 1 is strictly monotone over
     /// `[-max_theta, max_theta]` (radians), which the inverse needs:
     /// `dΔL_a/dθ = (R−B) sin φ − d_t cos φ < 0 ⇔ tan φ < d_t/(R−B)`.
@@ -61,10 +77,7 @@ impl TendonGeometry {
     /// carries `max_theta_rad` in degrees and, as its bounds, the range this
     /// geometry allows.
     pub fn validate(&self, max_theta_rad: f64) -> Result<()> {
-        Bounds::closed(1.0, 16.0).check("n_segments", f64::from(self.n_segments))?;
-        Bounds::open(0.0, 100.0).check("r_mm", self.r_mm)?;
-        Bounds::closed_open(0.0, self.r_mm).check("b_mm", self.b_mm)?;
-        Bounds::open(0.0, 100.0).check("tendon_offset_mm", self.tendon_offset_mm)?;
+        self.validate_parameters()?;
         let phi_max = max_theta_rad / self.two_n();
         let limit = (self.tendon_offset_mm / (self.r_mm - self.b_mm)).atan();
         // (NaN and a range that is not positive are out of it too)
