@@ -26,7 +26,7 @@ use std::collections::VecDeque;
 
 use kflex_model::{
     Bounds, BuildTolerances, BuiltInstrument, Camera, Command, Frame, FrameParams, Instrument,
-    InstrumentShape, Plant, Roi, SceneRenderer, TrajectorySampler,
+    InstrumentShape, Num, Plant, Roi, SceneRenderer, TrajectorySampler,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -464,22 +464,70 @@ pub struct RecordedFrame {
 }
 
 impl RecordedFrame {
-    /// Why the frame's pixels cannot be read as its window's, if they cannot:
-    /// a window wider or taller than [`kflex_model::MAX_IMAGE_SIDE`], or
-    /// pixels that do not fill it exactly.
+    /// Why the frame cannot be replayed as recorded, if it cannot: a window
+    /// wider or taller than [`kflex_model::MAX_IMAGE_SIDE`] or reaching past
+    /// it, pixels that do not fill it exactly, a NaN or infinite time, or a
+    /// command no run can have given (see [`replay_command_error`]).
     #[must_use]
     pub fn fill_error(&self) -> Option<String> {
         let (w, h) = (self.window.width, self.window.height);
-        (w > kflex_model::MAX_IMAGE_SIDE
+        let side = u64::from(kflex_model::MAX_IMAGE_SIDE);
+        if w > kflex_model::MAX_IMAGE_SIDE
             || h > kflex_model::MAX_IMAGE_SIDE
-            || self.rgb.len() as u128 != 3 * u128::from(w) * u128::from(h))
-        .then(|| {
-            format!(
+            || self.rgb.len() as u128 != 3 * u128::from(w) * u128::from(h)
+        {
+            return Some(format!(
                 "a recorded frame of {} bytes does not fill its {w}×{h} window",
                 self.rgb.len()
-            )
-        })
+            ));
+        }
+        if u64::from(self.window.x0) + u64::from(w) > side
+            || u64::from(self.window.y0) + u64::from(h) > side
+        {
+            return Some(format!(
+                "a recorded frame's {w}×{h} window at ({}, {}) reaches past any image's side ({side} px)",
+                self.window.x0, self.window.y0
+            ));
+        }
+        if !(self.captured_s.is_finite() && self.arrives_s.is_finite()) {
+            return Some(format!(
+                "a recorded frame's capture or arrival time is not finite (captured_s {}, arrives_s {})",
+                Num(self.captured_s),
+                Num(self.arrives_s)
+            ));
+        }
+        replay_command_error(&self.command).map(|e| format!("a recorded frame's {e}"))
     }
+}
+
+/// The largest joint angle a replay reads, deg: a full turn each way (the
+/// joint's hard stops lie well inside; a log past it holds no joint's angle).
+pub const REPLAY_MAX_ANGLE_DEG: f64 = 360.0;
+
+/// The translations a replay reads, mm: those any stage's limits can allow
+/// (`kflex_model::TranslationParams::validate`).
+const REPLAY_TRANSLATION_MM: [f64; 2] = [0.0, 1e3];
+
+/// Why a recorded command cannot be one a run gave, if it cannot: θ_c NaN,
+/// infinite or past ±[`REPLAY_MAX_ANGLE_DEG`], or a translation NaN or
+/// outside 0–1,000 mm (an estimator reads its working band from it).
+#[must_use]
+pub fn replay_command_error(command: &Command) -> Option<String> {
+    let (theta, d) = (command.theta_c_deg, command.translation_mm);
+    if !(theta.is_finite() && theta.abs() <= REPLAY_MAX_ANGLE_DEG) {
+        return Some(format!(
+            "command theta_c_deg = {} is outside ±{REPLAY_MAX_ANGLE_DEG} deg",
+            Num(theta)
+        ));
+    }
+    let [lo, hi] = REPLAY_TRANSLATION_MM;
+    if !(lo..=hi).contains(&d) {
+        return Some(format!(
+            "command translation_mm = {} is outside [{lo}, {hi}] mm",
+            Num(d)
+        ));
+    }
+    None
 }
 
 impl ClosedLoopTrace {
@@ -807,6 +855,24 @@ impl ClosedLoopScenario {
         let motion = &self.motion;
         let dt = motion.dt_s;
         if let Some(message) = frames.iter().find_map(RecordedFrame::fill_error) {
+            return Err(crate::ControlError::Worker { message });
+        }
+        if let Some(message) = ticks.iter().enumerate().find_map(|(i, t)| {
+            let finite = [t.time_s, t.theta_d_deg, t.theta_d_rate_deg_per_s]
+                .iter()
+                .all(|v| v.is_finite());
+            if finite && t.theta_d_deg.abs() <= REPLAY_MAX_ANGLE_DEG {
+                replay_command_error(&t.command).map(|e| format!("replay tick {i}: {e}"))
+            } else {
+                Some(format!(
+                    "replay tick {i}: time_s {}, theta_d_deg {}, theta_d_rate_deg_per_s {}: \
+                     each must be finite, the angle within ±{REPLAY_MAX_ANGLE_DEG} deg",
+                    Num(t.time_s),
+                    Num(t.theta_d_deg),
+                    Num(t.theta_d_rate_deg_per_s)
+                ))
+            }
+        }) {
             return Err(crate::ControlError::Worker { message });
         }
         // each frame is built when it is handed over

@@ -87,8 +87,8 @@ mod results;
 
 pub use closed_loop::{
     AngleEstimator, CameraFrame, CameraTiming, ClosedLoopScenario, ClosedLoopTrace, EstimatorTick,
-    FrameCounts, FrameRequest, NoisyTruth, ReadingUse, RecordedFrame, ReplayTick, TickDetails,
-    estimation_rmse_deg,
+    FrameCounts, FrameRequest, NoisyTruth, REPLAY_MAX_ANGLE_DEG, ReadingUse, RecordedFrame,
+    ReplayTick, TickDetails, estimation_rmse_deg, replay_command_error,
 };
 pub use compensator::{
     BacklashTerm, Compensator, CompensatorConfig, CompensatorOutput, Fault, Terms,

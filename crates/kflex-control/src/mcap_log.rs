@@ -35,10 +35,11 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::closed_loop::{
-    ClosedLoopScenario, ClosedLoopTrace, RecordedFrame, ReplayTick, TickDetails,
+    ClosedLoopScenario, ClosedLoopTrace, REPLAY_MAX_ANGLE_DEG, RecordedFrame, ReplayTick,
+    TickDetails, replay_command_error,
 };
 use crate::error::{ControlError, Result};
-use kflex_model::{Command, Roi};
+use kflex_model::{Command, Num, Roi};
 
 /// The joint states' topic.
 pub const JOINT_STATES_TOPIC: &str = "/kflex/joint_states";
@@ -676,7 +677,60 @@ pub fn read_mcap(path: &Path) -> Result<RecordedLog> {
     }
     log.frames
         .sort_by(|a, b| a.arrives_s.total_cmp(&b.arrives_s));
+    check_recorded(path, &log)?;
     Ok(log)
+}
+
+/// What no run can have written: a joint state's value NaN or infinite, an
+/// angle past ±[`REPLAY_MAX_ANGLE_DEG`] (its square would overflow a
+/// table's RMSE), a frame [`RecordedFrame::fill_error`] refuses, or a
+/// scenario whose translation no stage allows. Named by index and field.
+fn check_recorded(path: &Path, log: &RecordedLog) -> Result<()> {
+    for (i, s) in log.states.iter().enumerate() {
+        let angles = [
+            ("theta_d_deg", s.theta_d_deg),
+            ("theta_c_deg", s.theta_c_deg),
+            ("theta_a_deg", s.theta_a_deg),
+            ("theta_a_measured_deg", s.theta_a_measured_deg),
+            ("theta_hat_deg", s.theta_hat_deg.unwrap_or(0.0)),
+        ];
+        let others = [
+            ("time_s", s.time_s),
+            ("theta_d_rate_deg_per_s", s.theta_d_rate_deg_per_s),
+        ];
+        let bad = angles
+            .iter()
+            .find(|(_, v)| !(v.is_finite() && v.abs() <= REPLAY_MAX_ANGLE_DEG))
+            .or_else(|| others.iter().find(|(_, v)| !v.is_finite()));
+        if let Some((name, value)) = bad {
+            return Err(log_error(
+                path,
+                format!(
+                    "joint state {i} (by time): {name} = {}: every value must be finite, \
+                     every angle within ±{REPLAY_MAX_ANGLE_DEG} deg",
+                    Num(*value)
+                ),
+            ));
+        }
+    }
+    for (i, f) in log.frames.iter().enumerate() {
+        if let Some(e) = f.fill_error() {
+            return Err(log_error(
+                path,
+                format!("camera frame {i} (by arrival): {e}"),
+            ));
+        }
+    }
+    if let Some(scenario) = &log.scenario {
+        let command = Command {
+            theta_c_deg: 0.0,
+            translation_mm: scenario.motion.translation_mm,
+        };
+        if let Some(e) = replay_command_error(&command) {
+            return Err(log_error(path, format!("the scenario metadata's {e}")));
+        }
+    }
+    Ok(())
 }
 
 /// Writes frame `i` of a run: its image, its silhouette and where and when

@@ -602,3 +602,94 @@ fn a_replay_hands_the_estimator_the_masters_command_as_the_run_did() {
         assert_eq!(s.1, *rate);
     }
 }
+
+/// A log holding what no run can have written is refused, naming the
+/// record and the field: an angle past a full turn (its square overflowed
+/// the replay table's RMSE to inf), a scenario whose translation no stage
+/// allows (LBHJAE read no frame). A frame placed past any image (its
+/// estimator read nothing and said nothing) is refused by the writer, and
+/// by a replay handed it directly, as are NaN ticks and commands.
+#[test]
+fn a_log_no_run_can_have_written_is_refused_naming_what() {
+    let scenario = ClosedLoopScenario {
+        motion: OpenLoopScenario {
+            periods: 0.1,
+            pre_roll_s: 0.2,
+            ..OpenLoopScenario::default()
+        },
+        compensator: None,
+        record_frames: true,
+        ..ClosedLoopScenario::default()
+    };
+    let mut plant = Plant::new(PlantConfig::default()).unwrap();
+    let trace = scenario.run(&mut plant, &mut Watcher, 4).unwrap();
+    assert!(!trace.camera_frames.is_empty());
+    let dir = temp_dir("refused");
+    let read =
+        |name: &str, trace: &kflex_control::ClosedLoopTrace, scenario: &ClosedLoopScenario| {
+            let path = dir.join(name);
+            trace.write_mcap(&path, scenario, 4).unwrap();
+            kflex_control::read_mcap(&path)
+        };
+    let good = read("good.mcap", &trace, &scenario).unwrap();
+
+    let mut far_angle = trace.clone();
+    far_angle.trace.theta_a_deg[2] = 1e308;
+    let e = read("angle.mcap", &far_angle, &scenario)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("angle.mcap") && e.contains("theta_a_deg = 1e308"),
+        "{e}"
+    );
+
+    // the writer refuses such a frame as the reader does
+    let mut far_window = trace.clone();
+    far_window.camera_frames[0].window.x0 = 4_000_000_000;
+    let e = far_window
+        .write_mcap(&dir.join("window.mcap"), &scenario, 4)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("reaches past"), "{e}");
+
+    let mut far_stage = scenario.clone();
+    far_stage.motion.translation_mm = 1e308;
+    let e = read("stage.mcap", &trace, &far_stage)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("scenario metadata") && e.contains("translation_mm = 1e308"),
+        "{e}"
+    );
+
+    // handed to a replay directly
+    let mut ticks = good.replay_ticks(scenario.motion.translation_mm);
+    ticks[1].theta_d_deg = f64::NAN;
+    let e = scenario
+        .replay(&mut Watcher, &ticks, &good.frames)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("replay tick 1") && e.contains("theta_d_deg NaN"),
+        "{e}"
+    );
+    let ticks = good.replay_ticks(scenario.motion.translation_mm);
+    let mut frames = good.frames.clone();
+    frames[0].command.translation_mm = f64::INFINITY;
+    let e = scenario
+        .replay(&mut Watcher, &ticks, &frames)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("translation_mm = inf"), "{e}");
+    let mut frames = good.frames.clone();
+    frames[0].window.x0 = 4_000_000_000;
+    let e = scenario
+        .replay(&mut Watcher, &ticks, &frames)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("window at (4000000000, ") && e.contains("reaches past"),
+        "{e}"
+    );
+    assert!(scenario.replay(&mut Watcher, &ticks, &good.frames).is_ok());
+}

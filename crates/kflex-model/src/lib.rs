@@ -83,7 +83,7 @@ pub use kinematics::TendonGeometry;
 pub use mask::Mask;
 pub use plant::{AuroraNoise, BUILD_SHARE, Command, HOMING_SHARE, Plant, PlantConfig, PlantState};
 pub use range::MAX_IMAGE_SIDE;
-pub use range::{Bounds, RangeError};
+pub use range::{Bounds, Num, RangeError};
 pub use raster::{MAX_BODIES, Rasterizer};
 pub use roi::Roi;
 pub use scene::{Background, Frame, FrameParams, Occlusion, SceneRenderer, Tissue};

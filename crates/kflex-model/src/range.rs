@@ -165,8 +165,13 @@ pub struct RangeError {
 /// Formats a number for a message: plain decimal for ordinary magnitudes,
 /// scientific notation for huge and tiny ones (so `f64::MAX` is `1.7976931348623157e308`,
 /// not 309 digits).
+///
+/// ```
+/// assert_eq!(kflex_model::Num(1e308).to_string(), "1e308");
+/// assert_eq!(kflex_model::Num(12.5).to_string(), "12.5");
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Num(pub(crate) f64);
+pub struct Num(pub f64);
 
 impl fmt::Display for Num {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
