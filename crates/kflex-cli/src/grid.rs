@@ -221,9 +221,16 @@ pub fn run(
         _ => None,
     };
     // the figures need a font for their text: without one, say so up front
+    // and their folder is made before any work, as the logs' is: one that
+    // cannot be made (a file in its place) fails the command up front
     let figures = match (plots, out) {
-        (true, Some(_)) => match crate::plots::init_font() {
-            Ok(_) => Some(Collector::new(&grid)),
+        (true, Some(dir)) => match crate::plots::init_font() {
+            Ok(_) => {
+                let plots = dir.join("plots");
+                std::fs::create_dir_all(&plots)
+                    .with_context(|| format!("creating {} for the figures", plots.display()))?;
+                Some(Collector::new(&grid))
+            }
             Err(why) => {
                 eprintln!("kflex-cli: warning: no figures: {why}");
                 None
@@ -276,16 +283,22 @@ pub fn run(
         println!("\nwrote {}", paths[0].display());
         println!("wrote {}", paths[1].display());
         if let Some(figures) = figures {
-            // the results are written: a figure that fails is a warning
+            // the results are written; a figure that fails still fails the
+            // command (non-zero exit), saying what is there and what is not
             let plots = dir.join("plots");
-            match figures.write(&plots, &rows) {
-                Ok(written) => println!(
-                    "wrote {} figures (PNG and SVG) to {}",
-                    written.len() / 2,
+            let written = figures.write(&plots, &rows).with_context(|| {
+                format!(
+                    "the results are written to {}, but not the figures: \
+                     any in {} are from an earlier run",
+                    dir.display(),
                     plots.display()
-                ),
-                Err(e) => eprintln!("kflex-cli: warning: the figures: {e:#}"),
-            }
+                )
+            })?;
+            println!(
+                "wrote {} figures (PNG and SVG) to {}",
+                written.len() / 2,
+                plots.display()
+            );
         }
     }
     Ok(())

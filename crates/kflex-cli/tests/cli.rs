@@ -1268,6 +1268,30 @@ fn a_scenario_draws_each_case_and_table_as_png_and_svg() {
     );
 }
 
+/// A figures folder that cannot be made (a file in its place) fails the
+/// command before any run, and leaves no results beside an earlier run's
+/// figures (it warned, exited 0 and wrote the results).
+#[test]
+fn a_figures_folder_that_cannot_be_made_fails_before_any_work() {
+    let dir = scratch("plots-file");
+    let file = scenario_file(&dir);
+    let out_dir = dir.join("out");
+    std::fs::create_dir_all(&out_dir).unwrap();
+    std::fs::write(out_dir.join("plots"), b"not a folder").unwrap();
+    assert_refused(
+        &[
+            "run",
+            "--scenario",
+            file.to_str().unwrap(),
+            "--out",
+            out_dir.to_str().unwrap(),
+        ],
+        "for the figures",
+    );
+    assert!(!out_dir.join("results.json").exists());
+    assert!(!out_dir.join("results.csv").exists());
+}
+
 #[test]
 fn figures_are_skipped_on_request_or_without_a_font_and_the_results_stay() {
     let dir = scratch("no-plots");
