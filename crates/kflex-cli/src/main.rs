@@ -56,6 +56,8 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
+            // an output folder the command made and left empty goes again
+            output::remove_made_if_empty();
             let interrupted = err.chain().any(|e| {
                 matches!(
                     e.downcast_ref::<kflex_control::ControlError>(),

@@ -28,6 +28,11 @@ pub(crate) fn paper_pm(mean: Option<f64>, std: Option<f64>) -> String {
     }
 }
 
+/// The folders [`check_writable`] made, outermost first: a command that
+/// then fails removes those still empty ([`remove_made_if_empty`]), so a
+/// refused argument leaves no empty output folder behind.
+static MADE: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
 /// Makes sure the results can be written to `dir` before any work: creates
 /// it, then a file in it, which it removes.
 pub(crate) fn check_writable(dir: &Path) -> Result<()> {
@@ -37,10 +42,31 @@ pub(crate) fn check_writable(dir: &Path) -> Result<()> {
             dir.display()
         ))
     };
+    // the folders this call makes, innermost first
+    let missing: Vec<PathBuf> = dir
+        .ancestors()
+        .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
+        .map(Path::to_path_buf)
+        .collect();
     std::fs::create_dir_all(dir).map_err(fail)?;
+    if let Ok(mut made) = MADE.lock() {
+        made.extend(missing.into_iter().rev());
+    }
     let probe = dir.join(format!(".kflex-write-check-{}", std::process::id()));
     std::fs::File::create(&probe).map_err(fail)?;
     std::fs::remove_file(&probe).map_err(fail)
+}
+
+/// Removes the folders [`check_writable`] made that are still empty,
+/// innermost first (a folder that holds anything stays): called when a
+/// command fails.
+pub(crate) fn remove_made_if_empty() {
+    if let Ok(made) = MADE.lock() {
+        for dir in made.iter().rev() {
+            // fails, harmlessly, where the folder is not empty
+            let _ = std::fs::remove_dir(dir);
+        }
+    }
 }
 
 /// Writes `dir/name` atomically: a temporary file in the same folder, then a

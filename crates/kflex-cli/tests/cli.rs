@@ -1268,6 +1268,25 @@ fn a_scenario_draws_each_case_and_table_as_png_and_svg() {
     );
 }
 
+/// A refused argument leaves no empty output folder behind (the folder was
+/// made before the arguments were checked); a folder that was there, or
+/// holds anything, stays.
+#[test]
+fn a_refused_argument_leaves_no_empty_output_folder() {
+    let dir = scratch("refused-out");
+    let nested = dir.join("a").join("b");
+    let d = nested.to_str().unwrap();
+    assert_refused(&["run", "--periods", "0", "--out", d], "periods");
+    assert!(!dir.exists(), "{} left behind", dir.display());
+    assert_refused(&["render", "--theta", "1000", "--out", d], "theta");
+    assert!(!dir.exists(), "{} left behind", dir.display());
+    // a folder that was there stays, with what it holds
+    std::fs::create_dir_all(&nested).unwrap();
+    std::fs::write(nested.join("keep.txt"), b"kept").unwrap();
+    assert_refused(&["run", "--periods", "0", "--out", d], "periods");
+    assert_eq!(std::fs::read(nested.join("keep.txt")).unwrap(), b"kept");
+}
+
 /// A figures folder that cannot be made (a file in its place) fails the
 /// command before any run, and leaves no results beside an earlier run's
 /// figures (it warned, exited 0 and wrote the results).
