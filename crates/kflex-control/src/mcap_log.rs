@@ -338,10 +338,15 @@ impl ClosedLoopTrace {
         {
             return Err(log_error(path, message));
         }
-        // a name of this process's and this call's own beside the log
+        // a hidden name of this process's and this call's own beside the log
+        // (`.NAME.PID-CALL.tmp`: a run killed mid-write leaves no file that
+        // looks like a log)
         static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let tmp = path.with_extension(format!("mcap.{}-{call}.tmp", std::process::id()));
+        let name = path
+            .file_name()
+            .map_or_else(|| "log.mcap".into(), |n| n.to_string_lossy().into_owned());
+        let tmp = path.with_file_name(format!(".{name}.{}-{call}.tmp", std::process::id()));
         let written = self.write_mcap_to(&tmp, scenario, seed, estimate, details);
         match written.and_then(|()| std::fs::rename(&tmp, path).map_err(|e| log_error(path, e))) {
             Ok(()) => Ok(()),
