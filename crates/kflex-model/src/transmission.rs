@@ -56,7 +56,10 @@ impl SheathParams {
     pub(crate) const FRICTION_COEFFICIENT: Bounds = Bounds::closed(0.0, 1.0);
     pub(crate) const ROUTE_WRAP_DEG: Bounds = Bounds::closed(0.0, 3600.0);
     pub(crate) const PRETENSION_N: Bounds = Bounds::open_closed(0.0, 1e3);
-    pub(crate) const TENDON_STIFFNESS: Bounds = Bounds::open(0.0, 1e6);
+    /// From 1 N/mm (a steel tendon of 0.3 mm is 10.5 N/mm over 1.3 m; an
+    /// UHMWPE one about 5): softer, the sheath's slack folds leave the
+    /// tendon solve short at 270 deg (0.1 N/mm: 2.5 µm no tension resolves).
+    pub(crate) const TENDON_STIFFNESS: Bounds = Bounds::closed_open(1.0, 1e6);
     pub(crate) const DISTAL_STIFFNESS: Bounds = Bounds::open(0.0, 1e7);
     pub(crate) const BACKLASH_MM: Bounds = Bounds::closed(0.0, 10.0);
     /// From 3 µm: below it the tendon solve's folds (the friction states
@@ -72,7 +75,7 @@ impl SheathParams {
     /// [`ModelError::OutOfRange`] naming the first field out of its range, in
     /// declaration order: `friction_coefficient` outside `[0, 1]`,
     /// `route_wrap_deg` outside `[0, 3600]` deg, `pretension_n` outside
-    /// `(0, 1000]` N, `tendon_stiffness_n_per_mm` outside `(0, 1e6)` N/mm,
+    /// `(0, 1000]` N, `tendon_stiffness_n_per_mm` outside `[1, 1e6)` N/mm,
     /// `distal_stiffness_n_per_mm` outside `(0, 1e7)` N/mm,
     /// `drive_backlash_mm` or `backlash_engagement_mm` outside `[0, 10]` mm, `presliding_mm` outside
     /// `[3e-3, 10]` mm, `elements` outside `[1, 200]`,
@@ -405,7 +408,10 @@ impl Tendon {
             if r.abs() < best.0 {
                 best = (r.abs(), t);
             }
-            let collapsed = hi - lo <= 1e-13 * (1.0 + t.abs());
+            // collapsed to a few of the tension's ulps (1e-13 N relative
+            // stopped 500 ulps short, where a slack fold still moved the
+            // proximal end by 0.03 mm)
+            let collapsed = hi - lo <= 4.0 * f64::EPSILON * (1.0 + t.abs());
             if r.abs() <= POSITION_TOL_MM || collapsed {
                 if collapsed && best.0 < r.abs() {
                     // the bracket's last midpoint is not its best end: near
