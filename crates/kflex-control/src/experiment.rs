@@ -105,7 +105,7 @@ impl OpenLoopScenario {
         Bounds::open_closed(0.0, 10.0).check("dt_s", self.dt_s)?;
         Bounds::closed_open(0.0, 1e4).check("pre_roll_s", self.pre_roll_s)?;
         let ticks = self.periods * self.period_s / self.dt_s;
-        Bounds::open_closed(0.0, 5e7).check("periods * period_s / dt_s", ticks)?;
+        Bounds::closed(1.0, 5e7).check("periods * period_s / dt_s", ticks)?;
         // the pre-roll ramps and holds, twice its length in ticks
         Bounds::closed(0.0, 5e7)
             .check("2 * pre_roll_s / dt_s", 2.0 * self.pre_roll_s / self.dt_s)?;

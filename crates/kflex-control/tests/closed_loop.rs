@@ -312,6 +312,18 @@ fn bad_settings_are_named_before_the_plant_moves() {
             },
             "dt_s",
         ),
+        // a period so short that no tick is evaluated (it ran, then failed
+        // in the metrics with "rmse needs two non-empty series")
+        (
+            ClosedLoopScenario {
+                motion: OpenLoopScenario {
+                    period_s: 1e-300,
+                    ..OpenLoopScenario::default()
+                },
+                ..ClosedLoopScenario::default()
+            },
+            "periods * period_s / dt_s",
+        ),
     ] {
         let mut p = plant(0.0);
         let mut estimator = NoisyTruth::new(1.0, 1).unwrap();
