@@ -347,12 +347,9 @@ pub fn run(args: &RunArgs) -> Result<()> {
 
 /// The experiment's error, said in terms of the flag behind it where there is one.
 fn explain(args: &RunArgs, err: ControlError) -> anyhow::Error {
-    let flag = match &err {
-        // a trace too short for the metrics
-        ControlError::NotEnoughData {
-            metric: "rmse" | "loop_width" | "error_peak_to_peak",
-            ..
-        } => Some(if args.periods < 1.0 {
+    // a run too short, or sampled too coarsely, for the metrics
+    let too_few = || {
+        if args.periods < 1.0 {
             format!(
                 "--periods {} is too short for a hysteresis loop (the command must rise and fall over the same angles): use --periods 1 or more",
                 num(args.periods)
@@ -366,10 +363,18 @@ fn explain(args: &RunArgs, err: ControlError) -> anyhow::Error {
                 if samples == 1.0 { "" } else { "s" },
                 num(args.periods)
             )
-        }),
+        }
+    };
+    let flag = match &err {
+        ControlError::NotEnoughData {
+            metric: "rmse" | "loop_width" | "error_peak_to_peak",
+            ..
+        } => Some(too_few()),
         _ => err.range().and_then(|r| match r.name {
             "periods" => Some(format!("--periods {}", num(args.periods))),
             "dt_s" => Some(format!("--dt {}", num(args.dt))),
+            // fewer than one evaluated tick, or too many
+            "periods * period_s / dt_s" if r.value < r.bounds.min => Some(too_few()),
             "periods * period_s / dt_s" => Some(format!(
                 "--periods {} at --dt {} s asks for too many samples",
                 num(args.periods),
