@@ -167,9 +167,11 @@ pub fn run(
     // the runs render through the nominal camera (the databases' own)
     let camera = Camera::default();
     let make = |kind| models.make(kind, &camera);
-    models.check(&grid.estimators, &camera).context(
-        "give the directory that holds the trained models with --models, or run with \
-         --estimators none",
+    check_models(
+        models,
+        &grid.estimators,
+        &camera,
+        ", or run with --estimators none",
     )?;
     let total_cases = grid.cases.len();
     // one thread a job at most, as the grid runs them
@@ -419,4 +421,27 @@ fn print_tables(rows: &[Row]) {
             println!();
         }
     }
+}
+
+/// [`ModelDir::check`], said for the command line: where a file is missing,
+/// what to give (`--models`, and `or` after it); where a model or database
+/// is there but damaged or of another model or camera, its own error alone
+/// (the directory was given, and holds the wrong thing).
+pub(crate) fn check_models(
+    models: &ModelDir,
+    kinds: &[kflex_control::EstimatorKind],
+    camera: &Camera,
+    or: &str,
+) -> Result<()> {
+    models.check(kinds, camera).map_err(|e| {
+        let missing = matches!(e, kflex_control::ControlError::Unavailable { .. });
+        let e = anyhow::Error::new(e);
+        if missing {
+            e.context(format!(
+                "give the directory that holds the trained models with --models{or}"
+            ))
+        } else {
+            e.context("the trained models")
+        }
+    })
 }

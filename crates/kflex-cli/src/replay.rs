@@ -107,9 +107,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
     let truth: Vec<f64> = log.states.iter().map(|s| s.theta_a_deg).collect();
     let models = ModelDir::new(&args.models);
     let camera = Camera::default();
-    models
-        .check(&kinds, &camera)
-        .context("give the directory that holds the trained models with --models")?;
+    crate::grid::check_models(&models, &kinds, &camera, "")?;
     println!(
         "kflex replay — {} ({} ticks of {} s, {} frames{}{})",
         args.log.display(),

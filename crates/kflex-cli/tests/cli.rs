@@ -784,6 +784,26 @@ fn a_scenario_naming_what_cannot_run_is_refused_before_any_run() {
         );
     }
     assert!(!out_dir.join("results.json").exists());
+    // a model that is there but damaged: its own error, not a request for
+    // the --models the user gave
+    let damaged = dir.join("damaged-models");
+    std::fs::create_dir_all(&damaged).unwrap();
+    std::fs::write(damaged.join("kbjae.onnx"), b"not a network").unwrap();
+    let out = kflex(&[
+        "run",
+        "--scenario",
+        path,
+        "--estimators",
+        "kbjae",
+        "--models",
+        damaged.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("the trained models") && !stderr.contains("give the directory"),
+        "{stderr}"
+    );
     assert_refused(
         &["run", "--scenario", path, "--estimators", "kalman"],
         "unknown estimator \"kalman\"",
