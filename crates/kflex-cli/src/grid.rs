@@ -82,6 +82,11 @@ impl Only {
                 .retain(|c| names.iter().any(|n| n == c.occlusion.name()));
         }
         if let Some(bends) = &self.sheath_deg {
+            // an angle that is none (NaN, infinite) is named, not left to
+            // narrow the grid to nothing
+            if let Some(bad) = bends.iter().find(|b| !b.is_finite()) {
+                bail!("--sheath {bad}: a sheath angle in degrees");
+            }
             grid.cases
                 .retain(|c| bends.iter().any(|b| (b - c.sheath_deg).abs() < 1e-9));
         }

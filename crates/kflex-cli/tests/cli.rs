@@ -818,6 +818,12 @@ fn a_scenario_naming_what_cannot_run_is_refused_before_any_run() {
         &["run", "--scenario", path, "--sheath", "45"],
         "no case of the scenario is left",
     );
+    for (bad, shown) in [("nan", "NaN"), ("inf", "inf")] {
+        assert_refused(
+            &["run", "--scenario", path, "--sheath", bad],
+            &format!("--sheath {shown}: a sheath angle in degrees"),
+        );
+    }
     assert_refused(&["run", "--jobs", "2"], "--scenario");
     for jobs in ["0", "1025", "two"] {
         assert_refused(
