@@ -828,7 +828,11 @@ impl ClosedLoopScenario {
     ///
     /// # Errors
     /// As [`ClosedLoopScenario::validate`]; the estimator's errors; a frame
-    /// whose pixels do not fill its window ([`crate::ControlError::Worker`]).
+    /// [`RecordedFrame::fill_error`] refuses (pixels that do not fill its
+    /// window, a window past any image's side, a NaN time, a command no
+    /// run gave: [`replay_command_error`]), or a tick with a NaN or
+    /// infinite time, θ_d or rate, or such a command
+    /// ([`crate::ControlError::Worker`]).
     pub fn replay(
         &self,
         estimator: &mut dyn AngleEstimator,
@@ -861,12 +865,12 @@ impl ClosedLoopScenario {
             let finite = [t.time_s, t.theta_d_deg, t.theta_d_rate_deg_per_s]
                 .iter()
                 .all(|v| v.is_finite());
-            if finite && t.theta_d_deg.abs() <= REPLAY_MAX_ANGLE_DEG {
+            if finite {
                 replay_command_error(&t.command).map(|e| format!("replay tick {i}: {e}"))
             } else {
                 Some(format!(
                     "replay tick {i}: time_s {}, theta_d_deg {}, theta_d_rate_deg_per_s {}: \
-                     each must be finite, the angle within ±{REPLAY_MAX_ANGLE_DEG} deg",
+                     each must be finite",
                     Num(t.time_s),
                     Num(t.theta_d_deg),
                     Num(t.theta_d_rate_deg_per_s)

@@ -338,6 +338,14 @@ impl ClosedLoopTrace {
         {
             return Err(log_error(path, message));
         }
+        // nothing the reader would refuse ([`read_mcap`])
+        if let Some(message) = self
+            .joint_states_with(estimate, details)
+            .enumerate()
+            .find_map(|(i, s)| joint_state_error(&s).map(|e| format!("joint state {i}: {e}")))
+        {
+            return Err(log_error(path, message));
+        }
         // a hidden name of this process's and this call's own beside the log
         // (`.NAME.PID-CALL.tmp`: a run killed mid-write leaves no file that
         // looks like a log)
@@ -542,7 +550,12 @@ struct RawImageIn {
 /// # Errors
 /// [`ControlError::Log`] naming the file and what is wrong: unreadable, not
 /// MCAP, no joint states, a message that does not follow its schema, an
-/// image of another encoding or whose data does not fill it.
+/// image of another encoding or whose data does not fill it; and what no
+/// run can have written, named by record and field: a NaN or infinite
+/// value, θ_c, θ_a or its measurement past ±[`REPLAY_MAX_ANGLE_DEG`], a
+/// frame [`RecordedFrame::fill_error`] refuses, a scenario translation
+/// outside 0–1,000 mm. [`ClosedLoopTrace::write_mcap`] refuses the same,
+/// so a log it wrote is read.
 pub fn read_mcap(path: &Path) -> Result<RecordedLog> {
     let bytes = std::fs::read(path).map_err(|e| log_error(path, e))?;
     let mut log = RecordedLog::default();
@@ -686,36 +699,43 @@ pub fn read_mcap(path: &Path) -> Result<RecordedLog> {
     Ok(log)
 }
 
-/// What no run can have written: a joint state's value NaN or infinite, an
-/// angle past ±[`REPLAY_MAX_ANGLE_DEG`] (its square would overflow a
-/// table's RMSE), a frame [`RecordedFrame::fill_error`] refuses, or a
-/// scenario whose translation no stage allows. Named by index and field.
+/// Why a joint state cannot be one a run wrote, if it cannot: a value NaN
+/// or infinite, or an angle the plant bounds (θ_c, θ_a and its
+/// measurement) past ±[`REPLAY_MAX_ANGLE_DEG`] (its square would overflow a
+/// table's RMSE). θ_d and θ̂ are held to finite values only: a trajectory
+/// may command past the joint's stops, and an estimate may err as far.
+fn joint_state_error(s: &JointState) -> Option<String> {
+    let bounded = [
+        ("theta_c_deg", s.theta_c_deg),
+        ("theta_a_deg", s.theta_a_deg),
+        ("theta_a_measured_deg", s.theta_a_measured_deg),
+    ];
+    let finite = [
+        ("time_s", s.time_s),
+        ("theta_d_deg", s.theta_d_deg),
+        ("theta_d_rate_deg_per_s", s.theta_d_rate_deg_per_s),
+        ("theta_hat_deg", s.theta_hat_deg.unwrap_or(0.0)),
+    ];
+    bounded
+        .iter()
+        .find(|(_, v)| !(v.is_finite() && v.abs() <= REPLAY_MAX_ANGLE_DEG))
+        .or_else(|| finite.iter().find(|(_, v)| !v.is_finite()))
+        .map(|(name, value)| {
+            format!(
+                "{name} = {}: every value must be finite, θ_c, θ_a and its measurement \
+                 within ±{REPLAY_MAX_ANGLE_DEG} deg",
+                Num(*value)
+            )
+        })
+}
+
+/// What no run can have written: a joint state [`joint_state_error`]
+/// refuses, a frame [`RecordedFrame::fill_error`] refuses, or a scenario
+/// whose translation no stage allows. Named by index and field.
 fn check_recorded(path: &Path, log: &RecordedLog) -> Result<()> {
     for (i, s) in log.states.iter().enumerate() {
-        let angles = [
-            ("theta_d_deg", s.theta_d_deg),
-            ("theta_c_deg", s.theta_c_deg),
-            ("theta_a_deg", s.theta_a_deg),
-            ("theta_a_measured_deg", s.theta_a_measured_deg),
-            ("theta_hat_deg", s.theta_hat_deg.unwrap_or(0.0)),
-        ];
-        let others = [
-            ("time_s", s.time_s),
-            ("theta_d_rate_deg_per_s", s.theta_d_rate_deg_per_s),
-        ];
-        let bad = angles
-            .iter()
-            .find(|(_, v)| !(v.is_finite() && v.abs() <= REPLAY_MAX_ANGLE_DEG))
-            .or_else(|| others.iter().find(|(_, v)| !v.is_finite()));
-        if let Some((name, value)) = bad {
-            return Err(log_error(
-                path,
-                format!(
-                    "joint state {i} (by time): {name} = {}: every value must be finite, \
-                     every angle within ±{REPLAY_MAX_ANGLE_DEG} deg",
-                    Num(*value)
-                ),
-            ));
+        if let Some(e) = joint_state_error(s) {
+            return Err(log_error(path, format!("joint state {i} (by time): {e}")));
         }
     }
     for (i, f) in log.frames.iter().enumerate() {

@@ -633,15 +633,80 @@ fn a_log_no_run_can_have_written_is_refused_naming_what() {
         };
     let good = read("good.mcap", &trace, &scenario).unwrap();
 
+    // the writer refuses an angle past a full turn; the reader refuses it
+    // in a log from elsewhere, and reads a θ_d or θ̂ past it (a trajectory
+    // may command past the stops, an estimate may err as far)
     let mut far_angle = trace.clone();
     far_angle.trace.theta_a_deg[2] = 1e308;
-    let e = read("angle.mcap", &far_angle, &scenario)
+    let e = far_angle
+        .write_mcap(&dir.join("angle.mcap"), &scenario, 4)
         .unwrap_err()
         .to_string();
+    assert!(e.contains("theta_a_deg = 1e308"), "{e}");
+    let state = |theta_d_deg: f64, theta_a_deg: f64, theta_hat_deg: f64| JointState {
+        time_s: 0.0,
+        theta_d_deg,
+        theta_d_rate_deg_per_s: 0.0,
+        theta_c_deg: 10.0,
+        theta_a_deg,
+        theta_a_measured_deg: 9.0,
+        theta_hat_deg: Some(theta_hat_deg),
+        details: kflex_control::TickDetails::default(),
+    };
+    let elsewhere = |name: &str, states: &[JointState]| {
+        let path = dir.join(name);
+        let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+        let mut out = mcap::Writer::new(file).unwrap();
+        let schema = out
+            .add_schema(
+                JOINT_STATE_SCHEMA_NAME,
+                "jsonschema",
+                JOINT_STATE_SCHEMA.as_bytes(),
+            )
+            .unwrap();
+        let channel = out
+            .add_channel(
+                schema,
+                JOINT_STATES_TOPIC,
+                "json",
+                &std::collections::BTreeMap::new(),
+            )
+            .unwrap();
+        for (k, s) in states.iter().enumerate() {
+            let header = mcap::records::MessageHeader {
+                channel_id: channel,
+                sequence: k as u32,
+                log_time: k as u64 * 10_000_000,
+                publish_time: k as u64 * 10_000_000,
+            };
+            let state = JointState {
+                time_s: k as f64 * 0.01,
+                ..*s
+            };
+            out.write_to_known_channel(&header, &serde_json::to_vec(&state).unwrap())
+                .unwrap();
+        }
+        out.finish().unwrap();
+        kflex_control::read_mcap(&path)
+    };
+    let e = elsewhere(
+        "angle.mcap",
+        &[state(10.0, 9.0, 9.0), state(10.0, 1e308, 9.0)],
+    )
+    .unwrap_err()
+    .to_string();
     assert!(
-        e.contains("angle.mcap") && e.contains("theta_a_deg = 1e308"),
+        e.contains("angle.mcap")
+            && e.contains("joint state 1")
+            && e.contains("theta_a_deg = 1e308"),
         "{e}"
     );
+    let far = elsewhere(
+        "far.mcap",
+        &[state(400.0, 9.0, -500.0), state(720.0, 9.0, 9.0)],
+    )
+    .unwrap();
+    assert_eq!(far.states.len(), 2);
 
     // the writer refuses such a frame as the reader does
     let mut far_window = trace.clone();
