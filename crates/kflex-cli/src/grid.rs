@@ -221,7 +221,7 @@ pub fn run(
     let logs = match (mcap, out) {
         (true, Some(dir)) => {
             let logs = dir.join("runs");
-            std::fs::create_dir_all(&logs)
+            crate::output::make_dirs(&logs)
                 .with_context(|| format!("creating {}", logs.display()))?;
             Some(logs)
         }
@@ -234,7 +234,7 @@ pub fn run(
         (true, Some(dir)) => match crate::plots::init_font() {
             Ok(_) => {
                 let plots = dir.join("plots");
-                std::fs::create_dir_all(&plots)
+                crate::output::make_dirs(&plots)
                     .with_context(|| format!("creating {} for the figures", plots.display()))?;
                 Some(Collector::new(&grid))
             }

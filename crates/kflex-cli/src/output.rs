@@ -28,7 +28,7 @@ pub(crate) fn paper_pm(mean: Option<f64>, std: Option<f64>) -> String {
     }
 }
 
-/// The folders [`check_writable`] made, outermost first: a command that
+/// The folders [`make_dirs`] made, outermost first: a command that
 /// then fails removes those still empty ([`remove_made_if_empty`]), so a
 /// refused argument leaves no empty output folder behind.
 static MADE: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
@@ -42,22 +42,36 @@ pub(crate) fn check_writable(dir: &Path) -> Result<()> {
             dir.display()
         ))
     };
-    // the folders this call makes, innermost first
-    let missing: Vec<PathBuf> = dir
-        .ancestors()
-        .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
-        .map(Path::to_path_buf)
-        .collect();
-    std::fs::create_dir_all(dir).map_err(fail)?;
-    if let Ok(mut made) = MADE.lock() {
-        made.extend(missing.into_iter().rev());
-    }
+    make_dirs(dir).map_err(fail)?;
     let probe = dir.join(format!(".kflex-write-check-{}", std::process::id()));
     std::fs::File::create(&probe).map_err(fail)?;
     std::fs::remove_file(&probe).map_err(fail)
 }
 
-/// Removes the folders [`check_writable`] made that are still empty,
+/// Makes `dir` and the folders above it that are missing, outermost first,
+/// one at a time, and records those this call made (only where making one
+/// succeeded: a folder that was there, or that another process made
+/// meanwhile, is never recorded), for [`remove_made_if_empty`].
+pub(crate) fn make_dirs(dir: &Path) -> std::io::Result<()> {
+    let chain: Vec<&Path> = dir
+        .ancestors()
+        .filter(|p| !p.as_os_str().is_empty())
+        .collect();
+    for p in chain.into_iter().rev() {
+        match std::fs::create_dir(p) {
+            Ok(()) => {
+                if let Ok(mut made) = MADE.lock() {
+                    made.push(p.to_path_buf());
+                }
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && p.is_dir() => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
+}
+
+/// Removes the folders [`make_dirs`] made that are still empty,
 /// innermost first (a folder that holds anything stays): called when a
 /// command fails.
 pub(crate) fn remove_made_if_empty() {
@@ -103,7 +117,7 @@ fn own_name(dir: &Path, name: &str, tag: &str) -> PathBuf {
 /// mixture of two runs'. An old file that cannot be put back stays under
 /// the name the error gives.
 pub(crate) fn write_atomic_set(dir: &Path, files: &[(&str, &[u8])]) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    make_dirs(dir).with_context(|| format!("creating {}", dir.display()))?;
     let paths: Vec<PathBuf> = files.iter().map(|(name, _)| dir.join(name)).collect();
     let remove = |paths: &[PathBuf]| paths.iter().for_each(|p| drop(std::fs::remove_file(p)));
     let mut temps: Vec<PathBuf> = Vec::with_capacity(files.len());

@@ -1,6 +1,6 @@
 //! `kflex-cli render`: one frame of the camera simulator, for a person to look at.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -9,6 +9,8 @@ use kflex_model::{
     Background, Camera, Frame, FrameParams, Instrument, Intrinsics, Mask, Occlusion, Rasterizer,
     Roi, SceneRenderer, Tissue, WorkingRegions,
 };
+
+use crate::output::write_atomic_set;
 
 #[derive(Debug, Args)]
 pub struct RenderArgs {
@@ -106,14 +108,21 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     // from an earlier render in the folder are removed, so that the folder
     // never holds a segmentation of another frame
     let segmented = segment_frame(&frame, roi, args.occlusion);
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
     let rgb = image::RgbImage::from_raw(frame.width, frame.height, frame.rgb.clone())
         .context("frame buffer does not match its size")?;
-    save(&args.out, "frame.png", |p| rgb.save(p))?;
-    save_mask(&args.out, "silhouette_48.png", &silhouette)?;
-    save_mask(&args.out, "instrument_mask.png", &frame.instrument)?;
-    save_mask(&args.out, "occluder_mask.png", &frame.occluder)?;
+    // the frame's four files as one set: written together or not at all
+    write_atomic_set(
+        &args.out,
+        &[
+            ("frame.png", &png(&rgb)?),
+            ("silhouette_48.png", &png(&mask_image(&silhouette)?)?),
+            (
+                "instrument_mask.png",
+                &png(&mask_image(&frame.instrument)?)?,
+            ),
+            ("occluder_mask.png", &png(&mask_image(&frame.occluder)?)?),
+        ],
+    )?;
     let (seg, iou) = match segmented {
         Ok(done) => done,
         Err(e) => {
@@ -140,8 +149,14 @@ pub fn render(args: &RenderArgs) -> Result<()> {
         "region of interest: {}×{} px at ({}, {})",
         roi.width, roi.height, roi.x0, roi.y0
     );
-    save_mask(&args.out, SEGMENTATION_FILES[0], &seg.full)?;
-    save_mask(&args.out, SEGMENTATION_FILES[1], &seg.small)?;
+    // the segmentation's two files as one set too
+    write_atomic_set(
+        &args.out,
+        &[
+            (SEGMENTATION_FILES[0], &png(&mask_image(&seg.full)?)?),
+            (SEGMENTATION_FILES[1], &png(&mask_image(&seg.small)?)?),
+        ],
+    )?;
     println!("segmentation: IoU {iou:.3} with the visible instrument in the region of interest");
     println!(
         "wrote frame.png, silhouette_48.png, instrument_mask.png, occluder_mask.png and the segmentation to {}",
@@ -188,25 +203,25 @@ fn segment_frame(frame: &Frame, roi: Roi, occlusion: f64) -> Result<(Segmentatio
     Ok((seg, iou))
 }
 
-fn save_mask(dir: &Path, name: &str, mask: &Mask) -> Result<()> {
-    let img = image::GrayImage::from_raw(
+/// A 0/1 mask as a black-and-white image.
+fn mask_image(mask: &Mask) -> Result<image::GrayImage> {
+    image::GrayImage::from_raw(
         mask.width(),
         mask.height(),
         mask.data().iter().map(|&v| v * 255).collect(),
     )
-    .context("mask buffer does not match its size")?;
-    save(dir, name, |p| img.save(p))
+    .context("mask buffer does not match its size")
 }
 
-/// Writes through a temporary file in the same folder, then renames: no half-written PNG.
-fn save(dir: &Path, name: &str, write: impl Fn(&Path) -> image::ImageResult<()>) -> Result<()> {
-    let path = dir.join(name);
-    // the process's own temporary name: two renders into one folder do not
-    // write through the same file
-    let tmp = dir.join(format!(".{name}.{}.tmp.png", std::process::id()));
-    if let Err(e) = write(&tmp) {
-        let _ = std::fs::remove_file(&tmp);
-        bail!("writing {}: {e}", path.display());
-    }
-    std::fs::rename(&tmp, &path).with_context(|| format!("writing {}", path.display()))
+/// An image encoded as PNG, in memory.
+fn png<P: image::PixelWithColorType>(
+    img: &image::ImageBuffer<P, Vec<P::Subpixel>>,
+) -> Result<Vec<u8>>
+where
+    [P::Subpixel]: image::EncodableLayout,
+{
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut bytes, image::ImageFormat::Png)
+        .context("encoding a PNG")?;
+    Ok(bytes.into_inner())
 }

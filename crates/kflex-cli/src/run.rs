@@ -356,11 +356,10 @@ fn explain(args: &RunArgs, err: ControlError) -> anyhow::Error {
             )
         } else {
             let period_s = OpenLoopScenario::default().period_s;
-            let samples = (args.periods * period_s / args.dt).round();
+            let samples = args.periods * period_s / args.dt;
             format!(
-                "--dt {} s is too coarse for a hysteresis loop ({samples} sample{} over --periods {} of {period_s:.2} s): use a --dt well below the period, e.g. the default 0.01",
+                "--dt {} s is too coarse for a hysteresis loop ({samples:.2} samples over --periods {} of {period_s:.2} s): use a --dt well below the period, e.g. the default 0.01",
                 num(args.dt),
-                if samples == 1.0 { "" } else { "s" },
                 num(args.periods)
             )
         }

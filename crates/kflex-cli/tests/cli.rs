@@ -1306,6 +1306,40 @@ fn a_refused_argument_leaves_no_empty_output_folder() {
     assert!(!dir.exists(), "{} left behind", dir.display());
     assert_refused(&["render", "--theta", "1000", "--out", d], "theta");
     assert!(!dir.exists(), "{} left behind", dir.display());
+    // a scenario run refused for its models leaves no folder either (its
+    // logs' and figures' folders, made later, are recorded as made too)
+    let file = scenario_file(&std::env::temp_dir().join(format!(
+        "kflex-cli-test-{}-refused-out-scenario",
+        std::process::id()
+    )));
+    assert_refused(
+        &[
+            "run",
+            "--scenario",
+            file.to_str().unwrap(),
+            "--estimators",
+            "kbjae",
+            "--models",
+            dir.join("no-models").to_str().unwrap(),
+            "--mcap",
+            "--out",
+            d,
+        ],
+        "kbjae.onnx",
+    );
+    assert!(!dir.exists(), "{} left behind", dir.display());
+    // a folder that was there stays, even empty and reached through a
+    // folder the command made ("x/../e/new", x made, e there before)
+    let base = scratch("refused-out-base");
+    let kept = base.join("e");
+    std::fs::create_dir_all(&kept).unwrap();
+    let through = base.join("x").join("..").join("e").join("new");
+    assert_refused(
+        &["run", "--periods", "0", "--out", through.to_str().unwrap()],
+        "periods",
+    );
+    assert!(kept.is_dir(), "{} removed", kept.display());
+    assert!(!base.join("x").exists() && !kept.join("new").exists());
     // a folder that was there stays, with what it holds
     std::fs::create_dir_all(&nested).unwrap();
     std::fs::write(nested.join("keep.txt"), b"kept").unwrap();
