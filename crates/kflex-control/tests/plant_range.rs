@@ -36,7 +36,7 @@ fn runs(plant: PlantConfig, what: &str) {
 /// of the friction states its tension's bracket closed onto a midpoint
 /// whose residual was worse than its other end's, and the slope it judged
 /// the resolution by was the gentle one of two ends. At 1 µm a fold still
-/// leaves 1.4 µm that no tension resolves (the floor's reason).
+/// leaves 2.4 µm that no tension resolves (the floor's reason).
 #[test]
 fn the_smallest_presliding_runs_the_paper_protocol() {
     for presliding_mm in [3e-3, 6e-3] {

@@ -64,8 +64,8 @@ impl SheathParams {
     pub(crate) const BACKLASH_MM: Bounds = Bounds::closed(0.0, 10.0);
     /// From 3 µm: below it the tendon solve's folds (the friction states
     /// switching within less than a step of the tension's resolution) leave
-    /// the proximal end 1.4 µm off at 1 µm, 0.02 mm at 0.1 µm; the tests
-    /// hold 3 µm at the paper's four sheath angles.
+    /// the proximal end 2.4 µm off at 1 µm (the paper's protocol at 270 deg);
+    /// the tests hold 3 µm at the paper's four sheath angles.
     pub(crate) const PRESLIDING_MM: Bounds = Bounds::closed(3e-3, 10.0);
     pub(crate) const PATH_MM_PER_RAD: Bounds = Bounds::closed(-1.0, 1.0);
 
@@ -231,10 +231,11 @@ pub(crate) const POSITION_TOL_MM: f64 = 1e-10;
 /// of the motor, mm (0.04 mdeg of bend: 0.182 mm of stroke is 6.5 deg),
 const RESOLVED_MM: f64 = 1e-6;
 /// or within this many times the position that resolution moves it (the
-/// slope `du/dT` times the bracket's width): near a fold of the friction
-/// states a push at the tip makes the slope 10⁷ mm/N and more, and the
-/// bracket of 10⁻¹² N leaves 10⁻⁵ mm (10 nm, 0.4 mdeg) that no tension
-/// resolves.
+/// steepest slope `du/dT` at the bracket's ends times its width, a few
+/// ulps of the tension: about 10⁻¹⁵ N): near a fold of the friction states
+/// a push at the tip makes the slope 10⁷ mm/N and more, and where a
+/// segment goes slack 10¹¹–10¹², so that a step of the tension's
+/// resolution moves the proximal end by up to 10⁻³ mm,
 const RESOLUTION_SLOPES: f64 = 4.0;
 /// and never more than this, mm (0.04 deg of bend): a fold steeper than the
 /// tension's resolution can follow is taken as found only this close.
