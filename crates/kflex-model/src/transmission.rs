@@ -399,7 +399,7 @@ impl Tendon {
         // the tension whose march landed nearest the motor so far, and the
         // slopes du/dT at the bracket's ends
         let mut best = (f64::INFINITY, t);
-        let (mut lo_slope, mut hi_slope, mut steepest) = (0.0_f64, 0.0_f64, 0.0_f64);
+        let (mut lo_slope, mut hi_slope) = (0.0_f64, 0.0_f64);
         for _ in 0..MAX_ITERATIONS {
             let mut m = self.march(chain, t, w);
             if !(m.residual_mm.is_finite() && m.by_tension > 0.0) {
@@ -431,7 +431,7 @@ impl Tendon {
                 // segment goes slack), the position cannot land closer than
                 // the slope times that resolution: the steepest slope at
                 // the bracket's ends or here
-                let slope = m.by_tension.max(steepest);
+                let slope = m.by_tension.max(lo_slope).max(hi_slope);
                 let resolved =
                     (RESOLUTION_SLOPES * slope * (hi - lo)).clamp(RESOLVED_MM, RESOLVED_MAX_MM);
                 return (m.by_anchor / m.by_tension, r.abs() <= resolved);
@@ -443,7 +443,6 @@ impl Tendon {
                 lo = t;
                 lo_slope = m.by_tension;
             }
-            steepest = lo_slope.max(hi_slope);
             let bracketed = lo.is_finite() && hi.is_finite();
             let newton = t - r / m.by_tension;
             // Newton inside the bracket while it at least halves the residual;
