@@ -83,6 +83,24 @@ pub(crate) fn remove_made_if_empty() {
     }
 }
 
+/// Raw 8-bit pixels (`color` `Rgb8` or `L8`, rows of `width`) encoded as
+/// PNG in memory, `name` saying which file in an error; pixels that do not
+/// fill `width × height` are an error.
+pub(crate) fn encode_png(
+    name: &str,
+    pixels: &[u8],
+    width: u32,
+    height: u32,
+    color: image::ExtendedColorType,
+) -> Result<Vec<u8>> {
+    use image::ImageEncoder;
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(pixels, width, height, color)
+        .with_context(|| format!("encoding {name}"))?;
+    Ok(png)
+}
+
 /// Writes `dir/name` atomically: a temporary file in the same folder, then a
 /// rename, so a reader never sees half a file and an old file survives a
 /// failed write. A newline ends the file.

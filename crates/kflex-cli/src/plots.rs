@@ -12,12 +12,11 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use anyhow::{Context, Result, anyhow, bail};
-use image::ImageEncoder;
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
-use crate::output::write_atomic_bytes;
+use crate::output::{encode_png, write_atomic_bytes};
 
 /// Fonts tried when `KFLEX_FONT` is not set, in order.
 const SYSTEM_FONTS: [&str; 6] = [
@@ -118,10 +117,13 @@ pub trait Figure {
             root.present()
                 .map_err(|e| anyhow!("drawing {stem}.png: {e}"))?;
         }
-        let mut png = Vec::new();
-        image::codecs::png::PngEncoder::new(&mut png)
-            .write_image(&rgb, w, h, image::ExtendedColorType::Rgb8)
-            .with_context(|| format!("encoding {stem}.png"))?;
+        let png = encode_png(
+            &format!("{stem}.png"),
+            &rgb,
+            w,
+            h,
+            image::ExtendedColorType::Rgb8,
+        )?;
         let mut svg = String::new();
         {
             let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();

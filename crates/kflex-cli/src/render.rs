@@ -10,7 +10,7 @@ use kflex_model::{
     Roi, SceneRenderer, Tissue, WorkingRegions,
 };
 
-use crate::output::write_atomic_set;
+use crate::output::{encode_png, write_atomic_set};
 
 #[derive(Debug, Args)]
 pub struct RenderArgs {
@@ -108,19 +108,30 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     // from an earlier render in the folder are removed, so that the folder
     // never holds a segmentation of another frame
     let segmented = segment_frame(&frame, roi, args.occlusion);
-    let rgb = image::RgbImage::from_raw(frame.width, frame.height, frame.rgb.clone())
-        .context("frame buffer does not match its size")?;
     // the frame's four files as one set: written together or not at all
+    let rgb = encode_png(
+        "frame.png",
+        &frame.rgb,
+        frame.width,
+        frame.height,
+        image::ExtendedColorType::Rgb8,
+    )?;
     write_atomic_set(
         &args.out,
         &[
-            ("frame.png", &png(&rgb)?),
-            ("silhouette_48.png", &png(&mask_image(&silhouette)?)?),
+            ("frame.png", &rgb),
+            (
+                "silhouette_48.png",
+                &mask_png("silhouette_48.png", &silhouette)?,
+            ),
             (
                 "instrument_mask.png",
-                &png(&mask_image(&frame.instrument)?)?,
+                &mask_png("instrument_mask.png", &frame.instrument)?,
             ),
-            ("occluder_mask.png", &png(&mask_image(&frame.occluder)?)?),
+            (
+                "occluder_mask.png",
+                &mask_png("occluder_mask.png", &frame.occluder)?,
+            ),
         ],
     )?;
     let (seg, iou) = match segmented {
@@ -153,8 +164,14 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     write_atomic_set(
         &args.out,
         &[
-            (SEGMENTATION_FILES[0], &png(&mask_image(&seg.full)?)?),
-            (SEGMENTATION_FILES[1], &png(&mask_image(&seg.small)?)?),
+            (
+                SEGMENTATION_FILES[0],
+                &mask_png(SEGMENTATION_FILES[0], &seg.full)?,
+            ),
+            (
+                SEGMENTATION_FILES[1],
+                &mask_png(SEGMENTATION_FILES[1], &seg.small)?,
+            ),
         ],
     )?;
     println!("segmentation: IoU {iou:.3} with the visible instrument in the region of interest");
@@ -203,25 +220,14 @@ fn segment_frame(frame: &Frame, roi: Roi, occlusion: f64) -> Result<(Segmentatio
     Ok((seg, iou))
 }
 
-/// A 0/1 mask as a black-and-white image.
-fn mask_image(mask: &Mask) -> Result<image::GrayImage> {
-    image::GrayImage::from_raw(
+/// A 0/1 mask as a black-and-white PNG, in memory (`name` for errors).
+fn mask_png(name: &str, mask: &Mask) -> Result<Vec<u8>> {
+    let gray: Vec<u8> = mask.data().iter().map(|&v| v * 255).collect();
+    encode_png(
+        name,
+        &gray,
         mask.width(),
         mask.height(),
-        mask.data().iter().map(|&v| v * 255).collect(),
+        image::ExtendedColorType::L8,
     )
-    .context("mask buffer does not match its size")
-}
-
-/// An image encoded as PNG, in memory.
-fn png<P: image::PixelWithColorType>(
-    img: &image::ImageBuffer<P, Vec<P::Subpixel>>,
-) -> Result<Vec<u8>>
-where
-    [P::Subpixel]: image::EncodableLayout,
-{
-    let mut bytes = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut bytes, image::ImageFormat::Png)
-        .context("encoding a PNG")?;
-    Ok(bytes.into_inner())
 }
