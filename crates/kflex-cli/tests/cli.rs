@@ -1347,6 +1347,39 @@ fn a_refused_argument_leaves_no_empty_output_folder() {
     assert_eq!(std::fs::read(nested.join("keep.txt")).unwrap(), b"kept");
 }
 
+/// A figure that cannot be written after the results are (a folder, not
+/// empty, where its PNG goes) fails the command with a non-zero exit that
+/// says the results are written and the figures are not, rather than a
+/// warning and exit 0 beside an earlier run's figures.
+#[test]
+fn a_figure_that_fails_after_the_results_fails_the_command() {
+    let dir = scratch("figure-blocked");
+    let file = scenario_file(&dir);
+    let out_dir = dir.join("out");
+    let blocked = out_dir.join("plots").join("table_IX_rmse.png");
+    std::fs::create_dir_all(blocked.join("inside")).unwrap();
+    let out = kflex(&[
+        "run",
+        "--scenario",
+        file.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        stderr.contains("the results are written") && stderr.contains("not the figures"),
+        "{stderr}"
+    );
+    assert!(out_dir.join("results.json").is_file());
+    assert!(out_dir.join("results.csv").is_file());
+    assert!(
+        blocked.join("inside").is_dir(),
+        "the folder in the way is left alone"
+    );
+}
+
 /// A figures folder that cannot be made (a file in its place) fails the
 /// command before any run, and leaves no results beside an earlier run's
 /// figures (it warned, exited 0 and wrote the results).
