@@ -295,8 +295,8 @@ pub fn run(
             let plots = dir.join("plots");
             let written = figures.write(&plots, &rows).with_context(|| {
                 format!(
-                    "the results are written to {}, but not the figures: \
-                     any in {} are from an earlier run",
+                    "the results are written to {}, but not all the figures: \
+                     {} may hold some of this run's beside an earlier run's",
                     dir.display(),
                     plots.display()
                 )

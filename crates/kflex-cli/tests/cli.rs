@@ -1369,7 +1369,7 @@ fn a_figure_that_fails_after_the_results_fails_the_command() {
     assert!(!out.status.success(), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(
-        stderr.contains("the results are written") && stderr.contains("not the figures"),
+        stderr.contains("the results are written") && stderr.contains("not all the figures"),
         "{stderr}"
     );
     assert!(out_dir.join("results.json").is_file());
