@@ -1266,6 +1266,50 @@ mod tests {
     }
 
     #[test]
+    fn going_straight_to_the_whole_chain_changes_no_answer() {
+        // a tick's solves after one that needed the whole chain skip
+        // shooting; the same solves each starting afresh give the same
+        // tensions and stiffnesses, and the flag is down after a commit
+        let p = SheathParams {
+            pretension_n: 50.0,
+            presliding_mm: 1e-3,
+            ..params()
+        };
+        let mut t = TendonSheath::new(p, 270.0).unwrap();
+        let mut fresh = t.clone();
+        let mut went_steep = 0;
+        for k in (0..=30).chain((0..30).rev()) {
+            let q = 0.02 * f64::from(k);
+            t.advance(q, 0.0).unwrap();
+            fresh.advance(q, 0.0).unwrap();
+            // a joint's search: several anchor positions in one tick
+            for j in 0..5 {
+                let w = 0.5 * q + 1e-3 * f64::from(j);
+                let d = t.distal(w, -w).unwrap();
+                went_steep += usize::from(t.a.steep);
+                fresh.a.steep = false;
+                fresh.b.steep = false;
+                let e = fresh.distal(w, -w).unwrap();
+                assert!(
+                    (d.tension_a_n - e.tension_a_n).abs() < 1e-7,
+                    "{d:?} vs {e:?}"
+                );
+                assert!(
+                    (d.tension_b_n - e.tension_b_n).abs() < 1e-7,
+                    "{d:?} vs {e:?}"
+                );
+                let rel = d.stiffness_a_n_per_mm / e.stiffness_a_n_per_mm - 1.0;
+                assert!(rel.abs() < 1e-6, "{d:?} vs {e:?}");
+            }
+            let w = 0.5 * q;
+            t.commit(w, -w).unwrap();
+            fresh.commit(w, -w).unwrap();
+            assert!(!t.a.steep && !t.b.steep);
+        }
+        assert!(went_steep > 20, "the shortcut was taken {went_steep} times");
+    }
+
+    #[test]
     fn frictionless_pair_is_two_springs_in_series() {
         let p = SheathParams {
             friction_coefficient: 0.0,
