@@ -14,17 +14,30 @@ use kflex_model::{Plant, PlantConfig};
 /// One repeat of one period at each of the paper's sheath angles; every
 /// row's figures finite.
 fn runs(plant: PlantConfig, what: &str) {
+    runs_at(plant, what, OpenLoopGrid::default().sheaths_deg);
+}
+
+/// One repeat of one period at 270 deg only (the slowest parameters; the
+/// bend where the tendon solve is hardest).
+fn runs_at_270(plant: PlantConfig, what: &str) {
+    runs_at(plant, what, vec![270.0]);
+}
+
+/// One repeat of one period at each of `sheaths_deg`; every row's figures finite.
+fn runs_at(plant: PlantConfig, what: &str, sheaths_deg: Vec<f64>) {
+    let count = sheaths_deg.len();
     let grid = OpenLoopGrid {
         plant,
         scenario: OpenLoopScenario {
             periods: 1.0,
             ..OpenLoopScenario::default()
         },
+        sheaths_deg,
         repeats: 1,
         ..OpenLoopGrid::default()
     };
     let rows = grid.run().unwrap_or_else(|e| panic!("{what}: {e}"));
-    assert_eq!(rows.len(), 4, "{what}");
+    assert_eq!(rows.len(), count, "{what}");
     for row in rows {
         assert!(
             row.rmse_deg.mean.is_finite() && row.max_hysteresis_deg.mean.is_finite(),
@@ -32,23 +45,6 @@ fn runs(plant: PlantConfig, what: &str) {
             row.sheath_deg
         );
     }
-}
-
-/// One repeat of one period at 270 deg only (the slowest parameters; the
-/// bend where the tendon solve is hardest).
-fn runs_at_270(plant: PlantConfig, what: &str) {
-    let grid = OpenLoopGrid {
-        plant,
-        scenario: OpenLoopScenario {
-            periods: 1.0,
-            ..OpenLoopScenario::default()
-        },
-        sheaths_deg: vec![270.0],
-        repeats: 1,
-        ..OpenLoopGrid::default()
-    };
-    let rows = grid.run().unwrap_or_else(|e| panic!("{what}: {e}"));
-    assert!(rows[0].rmse_deg.mean.is_finite(), "{what}");
 }
 
 /// The pre-sliding displacement from 1 nm. The shooting tendon solve
