@@ -253,7 +253,9 @@ fn balance_at(
 }
 
 /// The balance along θ with each tendon solved for its anchor there, and its
-/// slope, exact for the tendons through their condensed stiffness.
+/// slope, exact for the tendons through their condensed stiffness; NaN
+/// where a tendon's solve did not converge (its tension is not an answer
+/// to steer the search by).
 fn balance(
     geometry: &TendonGeometry,
     joint: &JointParams,
@@ -263,6 +265,9 @@ fn balance(
     let two_n = 2.0 * f64::from(geometry.n_segments);
     let an = anchors(geometry, theta);
     let distal = sheath.solve(an.w[0], an.w[1]);
+    if !sheath.converged() {
+        return (f64::NAN, f64::NAN);
+    }
     let (residual, slope) = balance_at(
         joint,
         two_n,
@@ -294,7 +299,8 @@ fn balance(
 /// own: under a tip load that pushes back along the instrument hard enough
 /// to overcome the joint's stiffness, no equilibrium stays near the last
 /// angle and the joint snaps through to the next one (buckling), as a real
-/// one would.
+/// one would. NaN where a tendon's solve fails on the way: its tension is
+/// no answer to follow the path by.
 pub(crate) fn solve_analytic(
     geometry: &TendonGeometry,
     joint: &JointParams,
@@ -325,7 +331,10 @@ pub(crate) fn solve_analytic(
         0.01,
         1e-10,
     );
-    balance(geometry, joint, sheath, theta);
+    // the sheath's trial state at θ (NaN where a tendon solve failed on the way)
+    if theta.is_nan() || balance(geometry, joint, sheath, theta).0.is_nan() {
+        return f64::NAN;
+    }
     theta
 }
 

@@ -8,6 +8,7 @@
 /// If `f` stays positive up to `hi` the answer is `hi`; if it is negative from
 /// `lo`, `lo`: the bounds act as stops. The answer is always within `tol` of a
 /// sign change of `f` (or a stop), never the middle of an unresolved bracket.
+/// NaN as soon as `f` gives NaN (it has no answer there to search by).
 pub(crate) fn root_decreasing(
     mut f: impl FnMut(f64) -> (f64, f64),
     lo: f64,
@@ -26,6 +27,9 @@ pub(crate) fn root_decreasing(
     // 200 iterations: bisection alone resolves 2^-200 of the range
     for _ in 0..200 {
         let (v, slope) = f(x);
+        if v.is_nan() {
+            return f64::NAN;
+        }
         if v == 0.0 {
             return x;
         }
@@ -44,11 +48,17 @@ pub(crate) fn root_decreasing(
         x = if newton_ok { newton } else { 0.5 * (lo + hi) };
     }
     // resolved to tol: report the stop exactly where the root is at it
-    if hi <= lo0 + tol && f(lo0).0 <= 0.0 {
-        return lo0;
+    if hi <= lo0 + tol {
+        let v = f(lo0).0;
+        if v.is_nan() || v <= 0.0 {
+            return if v.is_nan() { f64::NAN } else { lo0 };
+        }
     }
-    if lo >= hi0 - tol && f(hi0).0 >= 0.0 {
-        return hi0;
+    if lo >= hi0 - tol {
+        let v = f(hi0).0;
+        if v.is_nan() || v >= 0.0 {
+            return if v.is_nan() { f64::NAN } else { hi0 };
+        }
     }
     0.5 * (lo + hi)
 }
@@ -57,7 +67,8 @@ pub(crate) fn root_decreasing(
 /// points to (up where `f(start) > 0`, down where it is negative), within
 /// `[lo, hi]`: quasi-static path following. Steps of `step` doubling until the
 /// sign changes, then [`root_decreasing`] on that bracket. Returns the bound
-/// reached if there is no sign change before it.
+/// reached if there is no sign change before it, and NaN as soon as `f`
+/// gives NaN.
 pub(crate) fn follow_root(
     mut f: impl FnMut(f64) -> (f64, f64),
     lo: f64,
@@ -72,6 +83,9 @@ pub(crate) fn follow_root(
         0.5 * (lo + hi)
     };
     let (v0, _) = f(start);
+    if v0.is_nan() {
+        return f64::NAN;
+    }
     if v0 == 0.0 {
         return start;
     }
@@ -80,6 +94,9 @@ pub(crate) fn follow_root(
     loop {
         let far = (near + dir * h).clamp(lo, hi);
         let (v, _) = f(far);
+        if v.is_nan() {
+            return f64::NAN;
+        }
         if v.signum() != dir || v == 0.0 {
             let (a, b) = if dir > 0.0 { (near, far) } else { (far, near) };
             return root_decreasing(&mut f, a, b, 0.5 * (a + b), tol);

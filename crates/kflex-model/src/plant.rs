@@ -510,10 +510,14 @@ impl Plant {
             },
         };
         if !theta.is_finite() {
+            // the tendons' own solve, where that is what failed
+            let what = if self.sheath.converged() {
+                "joint angle"
+            } else {
+                "tendon element balance"
+            };
             self.sheath.discard();
-            return Err(ModelError::Diverged {
-                what: "joint angle",
-            });
+            return Err(ModelError::Diverged { what });
         }
         // the joint has answered: the tendons and their friction move to where it settled
         let (w_a, w_b) = match &self.joint {

@@ -35,7 +35,7 @@ pub struct SheathParams {
     pub backlash_engagement_mm: f64,
     /// Pre-sliding displacement `δ` of the tendon in its sheath, mm: the
     /// relative motion over which friction builds up to its sliding value
-    /// (Dahl's law; about 95 % after `3δ`). From 1 nm (tens of µm for
+    /// (Dahl's law; about 95 % after `3δ`). From 0.01 µm (tens of µm for
     /// steel against a liner or coil).
     pub presliding_mm: f64,
     /// Number `N` of friction elements along each tendon.
@@ -58,13 +58,14 @@ impl SheathParams {
     pub(crate) const PRETENSION_N: Bounds = Bounds::open_closed(0.0, 1e3);
     /// From 0.001 N/mm (a steel tendon of 0.3 mm is 10.5 N/mm over 1.3 m; an
     /// UHMWPE one about 5), which the tests run at the paper's four sheath
-    /// angles (the solve converges down to 1e-6 N/mm).
+    /// angles.
     pub(crate) const TENDON_STIFFNESS: Bounds = Bounds::closed_open(1e-3, 1e6);
     pub(crate) const DISTAL_STIFFNESS: Bounds = Bounds::open(0.0, 1e7);
     pub(crate) const BACKLASH_MM: Bounds = Bounds::closed(0.0, 10.0);
-    /// From 1 nm, which the tests run at the paper's four sheath angles (the
-    /// solve converges down to 0.01 nm, not at 1 pm).
-    pub(crate) const PRESLIDING_MM: Bounds = Bounds::closed(1e-6, 10.0);
+    /// From 0.01 µm, which the tests run at the paper's four sheath angles:
+    /// at 1 nm a tendon solve on the joint's search for its balance fails at
+    /// 270 deg (an element reversing within nanometres; 3 nm runs).
+    pub(crate) const PRESLIDING_MM: Bounds = Bounds::closed(1e-5, 10.0);
     pub(crate) const PATH_MM_PER_RAD: Bounds = Bounds::closed(-1.0, 1.0);
 
     /// Checks every parameter against its physical range.
@@ -76,7 +77,7 @@ impl SheathParams {
     /// `(0, 1000]` N, `tendon_stiffness_n_per_mm` outside `[0.001, 1e6)` N/mm,
     /// `distal_stiffness_n_per_mm` outside `(0, 1e7)` N/mm,
     /// `drive_backlash_mm` or `backlash_engagement_mm` outside `[0, 10]` mm, `presliding_mm` outside
-    /// `[1e-6, 10]` mm, `elements` outside `[1, 200]`,
+    /// `[1e-5, 10]` mm, `elements` outside `[1, 200]`,
     /// `sheath_path_mm_per_rad` outside `[−1, 1]` mm/rad (NaN is out of every
     /// range); then `route_wrap_deg` above [`SheathParams::max_wrap_deg`].
     ///
@@ -456,9 +457,10 @@ impl Tendon {
 
     /// Newton's method on all `N` element balances at once, the positions
     /// `u_i` the unknowns, from the committed positions (a balanced state a
-    /// tick away; the failed march's positions can be far off). Element `i` balances the segment on its
-    /// proximal side against the one on its distal side (the distal run for
-    /// the last element) through its friction:
+    /// tick away; the failed march's positions can be far off). Element `i`
+    /// balances the segment on its proximal side against the one on its
+    /// distal side (the distal run for the last element) through its
+    /// friction:
     /// ```text
     /// R_i = T(u_{i−1} − u_i) − ratio(z_i(u_i)) T(u_i − u_{i+1}),  u_{−1} = m, u_N = w
     /// ```
@@ -469,7 +471,8 @@ impl Tendon {
     /// friction's stiffness as the march's does. Each step is halved until
     /// `Σ R_i²` falls (the kinks of a reversal and of slack). Returns
     /// `−dT/dw` (from the same Jacobian) and whether it converged: a full
-    /// step moving no element by more than [`POSITION_TOL_MM`].
+    /// step moving no element by more than [`POSITION_TOL_MM`], or, where no
+    /// step descends, every balance holding to the arithmetic's resolution.
     fn solve_whole(&mut self, chain: &Chain, w: f64) -> (f64, bool) {
         let n = self.nodes.len();
         for (u, node) in self.u.iter_mut().zip(&self.nodes) {
@@ -478,7 +481,6 @@ impl Tendon {
         let mut sys = Balances::new(n);
         let mut merit = sys.evaluate(self, chain, &self.u, w);
         let mut trial = vec![0.0; n];
-        let mut sweeps = 0;
         for _ in 0..WHOLE_ITERATIONS {
             if !merit.is_finite() {
                 break;
@@ -513,31 +515,21 @@ impl Tendon {
                 }
                 alpha *= 0.5;
             }
-            // the balances where the positions are
             if taken {
                 self.u.copy_from_slice(&trial);
-            }
-            sys.evaluate(self, chain, &self.u, w);
-            if taken {
+                // the Jacobian at the new positions
+                sys.evaluate(self, chain, &self.u, w);
                 continue;
             }
             // no descent along Newton's step: none is left to find where
             // every balance holds to the arithmetic's resolution (the step
             // can stay above the tolerance where the Jacobian is badly
-            // conditioned); otherwise a sweep, then Newton again
+            // conditioned); otherwise the solve has failed
+            sys.evaluate(self, chain, &self.u, w);
             if sys.at_resolution() {
                 return self.accept(&mut sys, w);
             }
-            if sweeps == WHOLE_SWEEPS {
-                break;
-            }
-            sweeps += 1;
-            self.sweep(chain, w);
-            let next = sys.evaluate(self, chain, &self.u, w);
-            if next.is_nan() || next >= merit {
-                break;
-            }
-            merit = next;
+            break;
         }
         self.solved = None;
         (0.0, false)
@@ -555,51 +547,6 @@ impl Tendon {
         self.tension = sys.anchor_tension;
         self.solved = Some((w, stiffness));
         (stiffness, true)
-    }
-
-    /// One symmetric sweep of nonlinear Gauss–Seidel over the trial
-    /// positions: each element's balance solved in turn with its neighbours
-    /// held, down the chain and back. `R_i` falls strictly with `u_i`, so
-    /// each has one root, found by Newton's method kept inside a bracket.
-    /// Slow, but it never climbs: where Newton's step on the whole chain is
-    /// no descent (an element reversing within a pre-sliding of nanometres
-    /// makes `∂z/∂u` jump by `2/δ` across its committed position), a sweep
-    /// moves the chain off that kink.
-    fn sweep(&mut self, chain: &Chain, w: f64) {
-        let n = self.u.len();
-        for i in (0..n).chain((0..n).rev()) {
-            let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
-            let mut x = self.u[i];
-            let mut last = f64::INFINITY;
-            for _ in 0..MAX_ITERATIONS {
-                let e = Element::at(self, chain, &self.u, i, x, w);
-                if e.r == 0.0 || !e.r.is_finite() {
-                    break;
-                }
-                if e.r > 0.0 {
-                    lo = x;
-                } else {
-                    hi = x;
-                }
-                if hi - lo <= 4.0 * f64::EPSILON * (1.0 + x.abs()) {
-                    break;
-                }
-                let newton = x - e.r / e.diag;
-                let bracketed = lo.is_finite() && hi.is_finite();
-                x = if newton > lo && newton < hi && (!bracketed || e.r.abs() < 0.5 * last) {
-                    newton
-                } else if bracketed {
-                    0.5 * (lo + hi)
-                } else {
-                    let reach = 2.0 * (newton - x).abs().max(POSITION_TOL_MM);
-                    if e.r > 0.0 { x + reach } else { x - reach }
-                };
-                last = e.r.abs();
-            }
-            if x.is_finite() {
-                self.u[i] = x;
-            }
-        }
     }
 
     /// Tension of the first segment, at the motor (trial state; 0 when slack).
@@ -640,8 +587,6 @@ const LINE_SEARCH_HALVINGS: usize = 40;
 /// A balance within this many times what rounding alone leaves of it
 /// holds ([`Balances::at_resolution`]).
 const RESOLUTION_ULPS: f64 = 16.0;
-/// Gauss–Seidel sweeps a whole-chain solve may fall back on.
-const WHOLE_SWEEPS: usize = 20;
 
 /// Tension of a segment of stiffness `k` stretched by `x` beyond its length
 /// at `T₀` (the inverse of [`stretch`]), and `dT/dx`.
@@ -1087,7 +1032,6 @@ impl TendonSheath {
     }
 
     /// Whether the last solve converged.
-    #[cfg(feature = "multibody")]
     pub(crate) fn converged(&self) -> bool {
         self.converged
     }
