@@ -114,6 +114,33 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_nan_stops_the_search() {
+        // no answer where f has none: NaN, not a root guessed past it
+        let f = |x: f64| {
+            if x > 0.3 {
+                (f64::NAN, f64::NAN)
+            } else {
+                (0.5 - x, -1.0)
+            }
+        };
+        assert!(root_decreasing(f, 0.0, 1.0, 0.1, 1e-12).is_nan());
+        assert!(follow_root(f, -1.0, 1.0, 0.0, 0.01, 1e-12).is_nan());
+        assert!(follow_root(|_| (f64::NAN, 0.0), -1.0, 1.0, 0.0, 0.01, 1e-12).is_nan());
+        let r = follow_root(f, -1.0, 1.0, -0.5, 0.01, 1e-12);
+        assert!(r.is_nan(), "the root at 0.5 lies past the NaN at 0.3: {r}");
+        // a NaN that the search never reaches changes nothing
+        let g = |x: f64| {
+            if x > 0.8 {
+                (f64::NAN, 0.0)
+            } else {
+                (0.5 - x, -1.0)
+            }
+        };
+        let r = follow_root(g, -1.0, 1.0, 0.0, 0.01, 1e-12);
+        assert!((r - 0.5).abs() < 1e-11, "{r}");
+    }
+
+    #[test]
     fn finds_roots_and_stops() {
         let r = root_decreasing(|x| (2.0 - x * x * x, -3.0 * x * x), 0.0, 3.0, 0.1, 1e-14);
         assert!((r - 2f64.cbrt()).abs() < 1e-12);
