@@ -50,14 +50,20 @@ pub(crate) fn root_decreasing(
     // resolved to tol: report the stop exactly where the root is at it
     if hi <= lo0 + tol {
         let v = f(lo0).0;
-        if v.is_nan() || v <= 0.0 {
-            return if v.is_nan() { f64::NAN } else { lo0 };
+        if v.is_nan() {
+            return f64::NAN;
+        }
+        if v <= 0.0 {
+            return lo0;
         }
     }
     if lo >= hi0 - tol {
         let v = f(hi0).0;
-        if v.is_nan() || v >= 0.0 {
-            return if v.is_nan() { f64::NAN } else { hi0 };
+        if v.is_nan() {
+            return f64::NAN;
+        }
+        if v >= 0.0 {
+            return hi0;
         }
     }
     0.5 * (lo + hi)
