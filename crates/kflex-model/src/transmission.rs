@@ -526,7 +526,7 @@ impl Tendon {
             // can stay above the tolerance where the Jacobian is badly
             // conditioned); otherwise the solve has failed
             sys.evaluate(self, chain, &self.u, w);
-            if sys.at_resolution() {
+            if sys.resolved {
                 return self.accept(&mut sys, w);
             }
             break;
@@ -585,7 +585,7 @@ const WHOLE_ITERATIONS: usize = 100;
 /// Halvings of a whole-chain Newton step before the step is given up.
 const LINE_SEARCH_HALVINGS: usize = 40;
 /// A balance within this many times what rounding alone leaves of it
-/// holds ([`Balances::at_resolution`]).
+/// holds ([`Balances::resolved`]).
 const RESOLUTION_ULPS: f64 = 16.0;
 
 /// Tension of a segment of stiffness `k` stretched by `x` beyond its length
@@ -600,61 +600,6 @@ fn tension(t0: f64, k: f64, x: f64) -> (f64, f64) {
     }
 }
 
-/// One element's balance and what its Jacobian row is made of.
-struct Element {
-    /// `R_i = T_prox − ratio·T_dist`, N, and `∂R_i/∂u_i`.
-    r: f64,
-    diag: f64,
-    /// `∂T_prox/∂u_{i−1}`, the distal tension, `∂T_dist/∂u_i`, and the
-    /// element's ratio and friction state.
-    proximal_slope: f64,
-    distal: f64,
-    distal_slope: f64,
-    ratio: f64,
-    z: f64,
-    /// What rounding alone leaves of `R_i`, N: an ulp of each tension and
-    /// of each position its stretch is the difference of, times the
-    /// segment's stiffness.
-    resolution: f64,
-}
-
-impl Element {
-    /// Element `i` at `ui`, its neighbours where `u` has them (the motor
-    /// before the first, the anchor `w` after the last).
-    fn at(tendon: &Tendon, chain: &Chain, u: &[f64], i: usize, ui: f64, w: f64) -> Self {
-        let (distal, distal_slope) = if i + 1 == u.len() {
-            tension(chain.t0, chain.k_distal, ui - w)
-        } else {
-            tension(chain.t0, chain.k_segment, ui - u[i + 1])
-        };
-        let next = if i + 1 == u.len() { w } else { u[i + 1] };
-        let previous = if i == 0 { tendon.motor } else { u[i - 1] };
-        let (proximal, proximal_slope) = tension(chain.t0, chain.k_segment, previous - ui);
-        let (z, dz) = tendon.nodes[i].trial(ui);
-        // a slack element presses on nothing: no friction
-        let (ratio, dratio) = if distal > 0.0 {
-            element_ratio(chain.mu_dphi, z)
-        } else {
-            (1.0, 0.0)
-        };
-        let resolution = f64::EPSILON
-            * (proximal.abs()
-                + ratio * distal.abs()
-                + proximal_slope * (previous.abs() + ui.abs())
-                + ratio * distal_slope * (ui.abs() + next.abs()));
-        Self {
-            resolution,
-            r: proximal - ratio * distal,
-            diag: -proximal_slope - dratio * dz * distal - ratio * distal_slope,
-            proximal_slope,
-            distal,
-            distal_slope,
-            ratio,
-            z,
-        }
-    }
-}
-
 /// The element balances of one tendon, their tridiagonal Jacobian by the
 /// positions, and scratch for its solve ([`Tendon::solve_whole`]).
 struct Balances {
@@ -666,7 +611,7 @@ struct Balances {
     /// Friction states at the evaluated positions.
     z: Vec<f64>,
     /// Whether every balance holds to [`RESOLUTION_ULPS`] times what
-    /// rounding alone leaves of it ([`Element`]), at the evaluated positions.
+    /// rounding alone leaves of it, at the evaluated positions.
     resolved: bool,
     /// The Newton step (the right-hand side before [`Balances::solve_step`]),
     /// and the elimination's scratch.
@@ -703,27 +648,46 @@ impl Balances {
         let mut merit = 0.0;
         self.resolved = true;
         for i in (0..n).rev() {
-            let e = Element::at(tendon, chain, u, i, u[i], w);
-            self.resolved &= e.r.abs() <= RESOLUTION_ULPS * e.resolution;
-            self.z[i] = e.z;
-            self.r[i] = e.r;
-            self.lower[i] = e.proximal_slope;
-            self.diag[i] = e.diag;
-            self.upper[i] = e.ratio * e.distal_slope;
-            if i + 1 == n {
-                self.anchor_tension = e.distal;
-                self.anchor_slope = e.distal_slope;
-                self.anchor_ratio = e.ratio;
+            let last = i + 1 == n;
+            let (previous, here) = (if i == 0 { tendon.motor } else { u[i - 1] }, u[i]);
+            let next = if last { w } else { u[i + 1] };
+            let k_next = if last {
+                chain.k_distal
+            } else {
+                chain.k_segment
+            };
+            let (distal, distal_slope) = tension(chain.t0, k_next, here - next);
+            let (proximal, proximal_slope) = tension(chain.t0, chain.k_segment, previous - here);
+            let (z, dz) = tendon.nodes[i].trial(here);
+            // a slack element presses on nothing: no friction
+            let (ratio, dratio) = if distal > 0.0 {
+                element_ratio(chain.mu_dphi, z)
+            } else {
+                (1.0, 0.0)
+            };
+            let r = proximal - ratio * distal;
+            // what rounding alone leaves of the balance: an ulp of each
+            // tension and of each position its stretch is the difference
+            // of, times the segment's stiffness
+            let rounding = f64::EPSILON
+                * (proximal.abs()
+                    + ratio * distal.abs()
+                    + proximal_slope * (previous.abs() + here.abs())
+                    + ratio * distal_slope * (here.abs() + next.abs()));
+            self.resolved &= r.abs() <= RESOLUTION_ULPS * rounding;
+            self.z[i] = z;
+            self.r[i] = r;
+            self.lower[i] = proximal_slope;
+            self.diag[i] = -proximal_slope - dratio * dz * distal - ratio * distal_slope;
+            self.upper[i] = ratio * distal_slope;
+            if last {
+                self.anchor_tension = distal;
+                self.anchor_slope = distal_slope;
+                self.anchor_ratio = ratio;
             }
-            merit += e.r * e.r;
+            merit += r * r;
         }
         merit
-    }
-
-    /// Whether every balance holds to the arithmetic's resolution at the
-    /// evaluated positions.
-    fn at_resolution(&self) -> bool {
-        self.resolved
     }
 
     /// Solves `J x = step` in place (Thomas's algorithm: `−J` is an
