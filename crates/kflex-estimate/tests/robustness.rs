@@ -19,27 +19,27 @@ use matrix::{Bench, Case, Condition, Parts, Score, cases};
 // segmentation finds no instrument scores 0. The tissue colours are rendered
 // in the scene (`FrameParams::tissue`), so the steel reflects them.
 const BOUNDS: [(Condition, f64, f64); 12] = [
-    (Condition::Baseline, 0.90, 0.85),                  // 0.958 / 0.914
-    (Condition::Gain(0.4), 0.90, 0.85),                 // 0.928 / 0.898
-    (Condition::Gain(1.6), 0.90, 0.85),                 // 0.958 / 0.914
-    (Condition::Noise(0.1), 0.90, 0.85),                // 0.910 / 0.855
-    (Condition::Blur(3.0), 0.89, 0.82), // BELOW GOAL: 0.891 / 0.821 (median 0.946 / 0.924)
-    (Condition::Tint(0.25), 0.90, 0.85), // 0.964 / 0.927
-    (Condition::Specular, 0.90, 0.85),  // 0.941 / 0.903
-    (Condition::Tissue(Tissue::Grey), 0.88, 0.85), // BELOW GOAL: 0.889 / 0.857 (median 0.972 / 0.966)
-    (Condition::Tissue(Tissue::Pale), 0.90, 0.85), // 0.948 / 0.913
-    (Condition::Tissue(Tissue::White), 0.89, 0.84), // BELOW GOAL: 0.892 / 0.845 (median 0.972 / 0.967)
-    (Condition::Tissue(Tissue::BlueGreen), 0.90, 0.85), // 0.964 / 0.928
-    (Condition::Tissue(Tissue::Yellow), 0.90, 0.85), // 0.961 / 0.922
+    (Condition::Baseline, 0.90, 0.85),                  // 0.959 / 0.915
+    (Condition::Gain(0.4), 0.90, 0.85),                 // 0.924 / 0.893
+    (Condition::Gain(1.6), 0.90, 0.85),                 // 0.959 / 0.915
+    (Condition::Noise(0.1), 0.90, 0.85),                // 0.911 / 0.856
+    (Condition::Blur(3.0), 0.89, 0.82), // BELOW GOAL: 0.893 / 0.829 (median 0.947 / 0.926)
+    (Condition::Tint(0.25), 0.90, 0.85), // 0.965 / 0.928
+    (Condition::Specular, 0.90, 0.85),  // 0.940 / 0.900
+    (Condition::Tissue(Tissue::Grey), 0.88, 0.85), // BELOW GOAL: 0.888 / 0.855 (median 0.972 / 0.966)
+    (Condition::Tissue(Tissue::Pale), 0.90, 0.85), // 0.948 / 0.912
+    (Condition::Tissue(Tissue::White), 0.89, 0.84), // BELOW GOAL: 0.894 / 0.847 (median 0.972 / 0.968)
+    (Condition::Tissue(Tissue::BlueGreen), 0.90, 0.85), // 0.965 / 0.930
+    (Condition::Tissue(Tissue::Yellow), 0.90, 0.85), // 0.962 / 0.924
 ];
 
 /// The paper's tape (`Condition::TAPE`), at the goals: the visible rest of
 /// the instrument, whole (measured 2026-11-29).
 const TAPE_BOUNDS: [(Condition, f64, f64); 4] = [
-    (Condition::TAPE[0], 0.90, 0.85), // 20 % middle: 0.939 / 0.890
-    (Condition::TAPE[1], 0.90, 0.85), // 40 % middle: 0.920 / 0.865
-    (Condition::TAPE[2], 0.90, 0.85), // 20 % distal: 0.957 / 0.914
-    (Condition::TAPE[3], 0.90, 0.85), // 40 % distal: 0.957 / 0.916
+    (Condition::TAPE[0], 0.90, 0.85), // 20 % middle: 0.947 / 0.899
+    (Condition::TAPE[1], 0.90, 0.85), // 40 % middle: 0.924 / 0.872
+    (Condition::TAPE[2], 0.90, 0.85), // 20 % distal: 0.956 / 0.913
+    (Condition::TAPE[3], 0.90, 0.85), // 40 % distal: 0.956 / 0.915
 ];
 
 /// Frames of the matrix the segmentation calls empty, at most, per tissue
@@ -124,7 +124,7 @@ fn no_instrument_only_when_there_is_none() {
 /// to it. As measured; goal 0 for each.
 const MOST_UNDER_GOAL: [(u64, [usize; 16]); 3] = [
     (100, [0, 0, 0, 2, 5, 0, 0, 5, 0, 4, 0, 0, 0, 0, 0, 0]),
-    (200, [0, 0, 0, 1, 4, 0, 0, 7, 0, 3, 0, 0, 0, 0, 0, 0]),
+    (200, [0, 0, 0, 1, 4, 0, 0, 6, 0, 3, 0, 0, 0, 0, 0, 0]),
     (300, [0, 0, 1, 1, 4, 0, 0, 2, 0, 2, 0, 0, 0, 0, 0, 0]),
 ];
 

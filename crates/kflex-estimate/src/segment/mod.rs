@@ -350,8 +350,11 @@ pub fn segment(
 ///    straight step edge, blurred by any symmetric kernel, crosses; both
 ///    colours are read beside the pixel, so tissue that changes along the
 ///    instrument is no trouble. Where the two points are not of the two
-///    classes (a thin part, a corner) or their colours differ by less than
-///    [`SegmentParams::refine_contrast`], the cells' decision stands. A
+///    classes (a thin part, a corner, a spike of blurred rim), the colours
+///    are those of the nearest cell of each class whose neighbours are all
+///    of it, a few cells away at most; where there is none, or the colours
+///    differ by less than [`SegmentParams::refine_contrast`], the cells'
+///    decision stands. A
 ///    blurred rim wider than a cell (a far or defocused edge) can leave the
 ///    cells' boundary more than a cell out: an instrument cell whose pixels
 ///    all went to tissue becomes tissue, and the boundary around it is

@@ -14,7 +14,12 @@
 //! Gaussian blur of 0.5–2.5 px; under 3 px, three of the five land a column
 //! off, where the cells alone are off by up to two). The colours are read
 //! beside the cell, so tissue that changes along the instrument (dark lumen
-//! on one side, bright mucosa on the other) is no trouble.
+//! on one side, bright mucosa on the other) is no trouble. Where a part is
+//! too thin for that (a jaw, or a spike of blurred rim a cell wide that
+//! the threshold took for steel: a mix of grey and black is neutral), the
+//! samples across it both land in the tissue; such a cell reads its two
+//! colours at the nearest cells of each class that lie clear of the
+//! boundary instead (until 2026-11-29 it kept the cells' decision).
 
 use super::Scratch;
 use super::pyramid::Region2d;
@@ -163,6 +168,48 @@ pub(super) fn changed(c: u32) -> (usize, u8) {
     ((c & 0x7FFF_FFFF) as usize, (c >> 31) as u8)
 }
 
+/// The nearest cell to `(cx, cy)` (Euclidean, within `radius` cells; the
+/// first in row order among equals) that is of `class` and has its eight
+/// neighbours (those in the grid) of it too: a colour of that class read
+/// clear of the boundary.
+fn nearest_interior(
+    cells: &[u8],
+    cols: usize,
+    rows: usize,
+    cx: usize,
+    cy: usize,
+    class: u8,
+    radius: usize,
+) -> Option<(usize, usize)> {
+    let interior = |x: usize, y: usize| {
+        let (l, r) = (x.saturating_sub(1), (x + 1).min(cols - 1));
+        (y.saturating_sub(1)..(y + 2).min(rows)).all(|v| {
+            cells[v * cols + l..=v * cols + r]
+                .iter()
+                .all(|&c| c == class)
+        })
+    };
+    let mut best: Option<(usize, (usize, usize))> = None;
+    for y in cy.saturating_sub(radius)..(cy + radius + 1).min(rows) {
+        for x in cx.saturating_sub(radius)..(cx + radius + 1).min(cols) {
+            let d2 = x.abs_diff(cx).pow(2) + y.abs_diff(cy).pow(2);
+            if best.is_some_and(|(b, _)| d2 >= b) || cells[y * cols + x] != class {
+                continue;
+            }
+            if interior(x, y) {
+                best = Some((d2, (x, y)));
+            }
+        }
+    }
+    best.map(|(_, c)| c)
+}
+
+/// The 4×4 pixels centred on cell `(x, y)`'s centre.
+fn cell_box((x, y): (usize, usize)) -> [isize; 4] {
+    let (x, y) = ((2 * x) as isize, (2 * y) as isize);
+    [x - 1, y - 1, x + 3, y + 3]
+}
+
 /// Pixel offsets `reach` px along the unit vector of each Sobel gradient
 /// `(gx, gy)` of a 0/1 mask (each in −4..=4), rounded: index `(gy + 4) · 9 + gx + 4`.
 fn offsets(reach: f32) -> [(isize, isize); 81] {
@@ -193,9 +240,12 @@ fn offsets(reach: f32) -> [(isize, isize); 81] {
 /// noise `sigma` is above [`NOISY`] the mean of its 3×3 pixels, which cuts
 /// the noise to a third) lies past half way from the outer colour to the
 /// inner one. Where the two points do not lie in the two classes (a thin
-/// part, a corner) or their colours differ by less than `min_contrast`
-/// (8-bit units, feature distance), the cells' decision stands. In
-/// integers: no rounding decides a pixel.
+/// part, a corner, a spike of blurred rim) or the mask has no normal there,
+/// the two colours are read instead at the nearest cell of each class whose
+/// eight neighbours are all of it (within `reach / 2 + 2` cells, rounded
+/// up; [`nearest_interior`]); where there is none, or the two colours
+/// differ by less than `min_contrast` (8-bit units, feature distance), the
+/// cells' decision stands. In integers: no rounding decides a pixel.
 pub(super) fn refine(
     s: &mut Scratch,
     region: &Region2d,
@@ -238,6 +288,8 @@ pub(super) fn refine(
         mark_band(cells, cols, rows, band, near_diff);
     }
     let offsets = offsets(reach);
+    // how far the nearest interior cells are looked for, in cells
+    let radius = (reach / 2.0).ceil() as usize + 2;
     let min2 = f64::from(min_contrast).powi(2);
     let cell = |x: usize, y: usize| -> i32 { i32::from(cells[y * cols + x]) };
     // the cells' decision at a pixel (the samples read it, not the refined one)
@@ -251,9 +303,6 @@ pub(super) fn refine(
         let gy =
             cell(l, d) + 2 * cell(cx, d) + cell(r, d) - cell(l, u) - 2 * cell(cx, u) - cell(r, u);
         let (ox, oy) = offsets[((gy + 4) * 9 + gx + 4) as usize];
-        if (ox, oy) == (0, 0) {
-            return;
-        }
         // the two colours: the 4×4 pixels centred on the cell's centre
         // (the corner between its pixels) moved by ± the offset, so
         // that both lie exactly as far from it
@@ -268,9 +317,22 @@ pub(super) fn refine(
             (x >= 0 && y >= 0 && (x as usize) < rw && (y as usize) < rh)
                 .then(|| class_at(x as usize, y as usize))
         };
-        if centre_class(inside) != Some(1) || centre_class(outside) != Some(0) {
-            return;
-        }
+        let along_normal = (ox, oy) != (0, 0)
+            && centre_class(inside) == Some(1)
+            && centre_class(outside) == Some(0);
+        let (inside, outside) = if along_normal {
+            (inside, outside)
+        } else {
+            // a thin part or a corner: the nearest cells of each class
+            // whose neighbours are all of it
+            match (
+                nearest_interior(cells, cols, rows, cx, cy, 1, radius),
+                nearest_interior(cells, cols, rows, cx, cy, 0, radius),
+            ) {
+                (Some(i), Some(o)) => (cell_box(i), cell_box(o)),
+                _ => return,
+            }
+        };
         let ((s_in, m_in), (s_out, m_out)) = (box_sum(region, inside), box_sum(region, outside));
         let scale = m_in * m_out;
         let outer = s_out.map(|v| v * m_in);
@@ -499,6 +561,72 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Where the two colours along the boundary's normal do not lie in
+    /// their classes (a part one cell thin), the pixels are decided against
+    /// the nearest cells of each class whose neighbours are all of it: a
+    /// thin rim of steel blurred into the dark lumen (a quarter steel)
+    /// becomes tissue, a thin part of steel stays steel. The cells' decision
+    /// stood there before.
+    #[test]
+    fn a_thin_part_is_decided_against_the_nearest_interior_colours() {
+        // 40×24 px, 20×12 cells: steel in cells x < 8, lumen elsewhere,
+        // but for two arms three cells long at cell rows 4 and 8 (instrument
+        // in the cells), a rim that is a quarter steel and a part of steel
+        let (rw, rh, cols, rows) = (40usize, 24usize, 20usize, 12usize);
+        let (steel, lumen) = ([100.0, 101.0, 106.0], [20.0, 15.0, 15.0]);
+        let rim: [f64; 3] = std::array::from_fn(|k| 0.25 * steel[k] + 0.75 * lumen[k]);
+        let arm = |x: usize, y: usize| (8..11).contains(&(x / 2)) && [4, 8].contains(&(y / 2));
+        let mut rgb = Vec::with_capacity(3 * rw * rh);
+        for y in 0..rh {
+            for x in 0..rw {
+                let c = if x < 16 {
+                    steel
+                } else if arm(x, y) {
+                    if y / 2 == 4 { rim } else { steel }
+                } else {
+                    lumen
+                };
+                rgb.extend(c.map(|v: f64| v.round() as u8));
+            }
+        }
+        let region = Region2d {
+            rgb: &rgb,
+            first: 0,
+            stride: 3 * rw,
+            width: rw,
+            height: rh,
+        };
+        let cells: Vec<u8> = (0..rows)
+            .flat_map(|cy| (0..cols).map(move |cx| u8::from(cx < 8 || arm(2 * cx, 2 * cy))))
+            .collect();
+        let mut s = Scratch {
+            cells,
+            ..Scratch::default()
+        };
+        refine(&mut s, &region, cols, rows, 4.0, 0.2 * 255.0, 0.0);
+        let to_tissue: Vec<usize> = s
+            .changes
+            .iter()
+            .map(|&c| changed(c))
+            .filter(|&(_, v)| v == 0)
+            .map(|(i, _)| i)
+            .collect();
+        // the rim's tip cell reads its colours along the rim (its normal
+        // points back along it, both samples in their classes): it waits for
+        // the next pass, when the cells beside it have moved
+        let expected: Vec<usize> = (0..rw * rh)
+            .filter(|&i| arm(i % rw, i / rw) && (i / rw) / 2 == 4 && (i % rw) / 2 < 10)
+            .collect();
+        assert_eq!(
+            to_tissue, expected,
+            "the rim's pixels, and only they, become tissue"
+        );
+        assert!(
+            s.changes.iter().all(|&c| changed(c).1 == 0),
+            "no lumen pixel becomes steel"
+        );
     }
 
     /// Only an instrument cell all of whose pixels changed to tissue moves;
