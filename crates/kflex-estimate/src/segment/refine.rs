@@ -156,6 +156,10 @@ fn features([r, g, b]: [i64; 3]) -> [i64; 3] {
 /// instrument's sharp corners off.
 const NOISY: f32 = 0.03;
 
+/// The farthest, in cells, that [`refine`] looks for the nearest cell of a
+/// class clear of the boundary (the default reach of 4 px looks 4 cells).
+const MAX_INTERIOR_CELLS: usize = 8;
+
 /// A changed pixel: its index in the region (below 2²⁴) and its class in bit 31.
 #[inline]
 fn change(index: u32, class: u8) -> u32 {
@@ -243,7 +247,7 @@ fn offsets(reach: f32) -> [(isize, isize); 81] {
 /// part, a corner, a spike of blurred rim) or the mask has no normal there,
 /// the two colours are read instead at the nearest cell of each class whose
 /// eight neighbours are all of it (within `reach / 2 + 2` cells, rounded
-/// up; [`nearest_interior`]); where there is none, or the two colours
+/// up, and at most [`MAX_INTERIOR_CELLS`]; [`nearest_interior`]); where there is none, or the two colours
 /// differ by less than `min_contrast` (8-bit units, feature distance), the
 /// cells' decision stands. In integers: no rounding decides a pixel.
 pub(super) fn refine(
@@ -288,8 +292,10 @@ pub(super) fn refine(
         mark_band(cells, cols, rows, band, near_diff);
     }
     let offsets = offsets(reach);
-    // how far the nearest interior cells are looked for, in cells
-    let radius = (reach / 2.0).ceil() as usize + 2;
+    // how far the nearest interior cells are looked for, in cells (at most
+    // `MAX_INTERIOR_CELLS`: a long reach must not make each search cost
+    // thousands of cells)
+    let radius = ((reach / 2.0).ceil() as usize + 2).min(MAX_INTERIOR_CELLS);
     let min2 = f64::from(min_contrast).powi(2);
     let cell = |x: usize, y: usize| -> i32 { i32::from(cells[y * cols + x]) };
     // the cells' decision at a pixel (the samples read it, not the refined one)
