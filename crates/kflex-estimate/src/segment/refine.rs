@@ -208,10 +208,16 @@ fn nearest_interior(
     best.map(|(_, c)| c)
 }
 
-/// The 4×4 pixels centred on cell `(x, y)`'s centre.
-fn cell_box((x, y): (usize, usize)) -> [isize; 4] {
-    let (x, y) = ((2 * x) as isize, (2 * y) as isize);
+/// The 4×4 pixels `x − 1 ..= x + 2` by `y − 1 ..= y + 2`, centred on the
+/// corner between pixels `x` and `x + 1` (and rows `y`, `y + 1`): at
+/// `(2 cx, 2 cy)`, on cell `(cx, cy)`'s centre.
+fn box_at(x: isize, y: isize) -> [isize; 4] {
     [x - 1, y - 1, x + 3, y + 3]
+}
+
+/// [`box_at`] the centre of cell `(x, y)`.
+fn cell_box((x, y): (usize, usize)) -> [isize; 4] {
+    box_at((2 * x) as isize, (2 * y) as isize)
 }
 
 /// Pixel offsets `reach` px along the unit vector of each Sobel gradient
@@ -246,10 +252,11 @@ fn offsets(reach: f32) -> [(isize, isize); 81] {
 /// inner one. Where the two points do not lie in the two classes (a thin
 /// part, a corner, a spike of blurred rim) or the mask has no normal there,
 /// the two colours are read instead at the nearest cell of each class whose
-/// eight neighbours are all of it (within `reach / 2 + 2` cells, rounded
-/// up, and at most [`MAX_INTERIOR_CELLS`]; [`nearest_interior`]); where there is none, or the two colours
-/// differ by less than `min_contrast` (8-bit units, feature distance), the
-/// cells' decision stands. In integers: no rounding decides a pixel.
+/// eight neighbours are all of it ([`nearest_interior`], within
+/// `reach / 2 + 2` cells, rounded up, and at most [`MAX_INTERIOR_CELLS`]);
+/// where there is none, or the two colours differ by less than
+/// `min_contrast` (8-bit units, feature distance), the cells' decision
+/// stands. In integers: no rounding decides a pixel.
 pub(super) fn refine(
     s: &mut Scratch,
     region: &Region2d,
@@ -312,11 +319,9 @@ pub(super) fn refine(
         // the two colours: the 4×4 pixels centred on the cell's centre
         // (the corner between its pixels) moved by ± the offset, so
         // that both lie exactly as far from it
-        let box_at = |sign: isize| -> [isize; 4] {
-            let (x, y) = ((2 * cx) as isize + sign * ox, (2 * cy) as isize + sign * oy);
-            [x - 1, y - 1, x + 3, y + 3]
-        };
-        let (inside, outside) = (box_at(1), box_at(-1));
+        let moved =
+            |sign: isize| box_at((2 * cx) as isize + sign * ox, (2 * cy) as isize + sign * oy);
+        let (inside, outside) = (moved(1), moved(-1));
         // both boxes' centres must lie in the image and in their class
         let centre_class = |b: [isize; 4]| -> Option<u8> {
             let (x, y) = (b[0] + 2, b[1] + 2);
