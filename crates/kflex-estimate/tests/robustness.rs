@@ -23,12 +23,12 @@ const BOUNDS: [(Condition, f64, f64); 12] = [
     (Condition::Gain(0.4), 0.90, 0.85),                 // 0.924 / 0.893
     (Condition::Gain(1.6), 0.90, 0.85),                 // 0.959 / 0.915
     (Condition::Noise(0.1), 0.90, 0.85),                // 0.911 / 0.856
-    (Condition::Blur(3.0), 0.89, 0.82), // BELOW GOAL: 0.893 / 0.829 (median 0.947 / 0.926)
+    (Condition::Blur(3.0), 0.89, 0.82), // BELOW GOAL: 0.892 / 0.829 (median 0.947 / 0.925)
     (Condition::Tint(0.25), 0.90, 0.85), // 0.965 / 0.928
-    (Condition::Specular, 0.90, 0.85),  // 0.940 / 0.900
+    (Condition::Specular, 0.90, 0.85),  // 0.939 / 0.900
     (Condition::Tissue(Tissue::Grey), 0.88, 0.85), // BELOW GOAL: 0.888 / 0.855 (median 0.972 / 0.966)
     (Condition::Tissue(Tissue::Pale), 0.90, 0.85), // 0.948 / 0.912
-    (Condition::Tissue(Tissue::White), 0.89, 0.84), // BELOW GOAL: 0.894 / 0.847 (median 0.972 / 0.968)
+    (Condition::Tissue(Tissue::White), 0.89, 0.84), // BELOW GOAL: 0.894 / 0.845 (median 0.972 / 0.968)
     (Condition::Tissue(Tissue::BlueGreen), 0.90, 0.85), // 0.965 / 0.930
     (Condition::Tissue(Tissue::Yellow), 0.90, 0.85), // 0.962 / 0.924
 ];
