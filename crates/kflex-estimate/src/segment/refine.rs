@@ -185,14 +185,6 @@ fn nearest_interior(
     class: u8,
     radius: usize,
 ) -> Option<(usize, usize)> {
-    let interior = |x: usize, y: usize| {
-        let (l, r) = (x.saturating_sub(1), (x + 1).min(cols - 1));
-        (y.saturating_sub(1)..(y + 2).min(rows)).all(|v| {
-            cells[v * cols + l..=v * cols + r]
-                .iter()
-                .all(|&c| c == class)
-        })
-    };
     let mut best: Option<(usize, (usize, usize))> = None;
     for y in cy.saturating_sub(radius)..(cy + radius + 1).min(rows) {
         for x in cx.saturating_sub(radius)..(cx + radius + 1).min(cols) {
@@ -200,12 +192,20 @@ fn nearest_interior(
             if best.is_some_and(|(b, _)| d2 >= b) || cells[y * cols + x] != class {
                 continue;
             }
-            if interior(x, y) {
+            if !borders_other(cells, cols, rows, x, y) {
                 best = Some((d2, (x, y)));
             }
         }
     }
     best.map(|(_, c)| c)
+}
+
+/// Whether a cell among the eight around `(x, y)` (those in the grid) is of
+/// another class than it.
+fn borders_other(cells: &[u8], cols: usize, rows: usize, x: usize, y: usize) -> bool {
+    let here = cells[y * cols + x];
+    (y.saturating_sub(1)..(y + 2).min(rows))
+        .any(|v| (x.saturating_sub(1)..(x + 2).min(cols)).any(|u| cells[v * cols + u] != here))
 }
 
 /// The 4×4 pixels `x − 1 ..= x + 2` by `y − 1 ..= y + 2`, centred on the
@@ -396,11 +396,7 @@ pub(super) fn refine(
         // stand)
         for &c in redo_list.iter() {
             let (cx, cy) = (c as usize % cols, c as usize / cols);
-            let here = cells[cy * cols + cx];
-            let borders = (cy.saturating_sub(1)..(cy + 2).min(rows)).any(|y| {
-                (cx.saturating_sub(1)..(cx + 2).min(cols)).any(|x| cells[y * cols + x] != here)
-            });
-            if borders {
+            if borders_other(cells, cols, rows, cx, cy) {
                 refine_cell(cx, cy);
             }
         }
