@@ -1125,6 +1125,17 @@ mod tests {
         }
     }
 
+    /// 50 N over a pre-sliding of 1 µm at 270°: each element's friction
+    /// about nine times stiffer than the tendon beside it.
+    fn stiff_friction() -> TendonSheath {
+        let p = SheathParams {
+            pretension_n: 50.0,
+            presliding_mm: 1e-3,
+            ..params()
+        };
+        TendonSheath::new(p, 270.0).unwrap()
+    }
+
     #[test]
     fn friction_stiffer_than_the_tendon_is_solved_by_the_whole_chain() {
         // 50 N over a pre-sliding of 1 µm: each element's friction is about
@@ -1132,12 +1143,7 @@ mod tests {
         // amplifies a change of the anchor tension ~10¹⁹ times over the chain,
         // so shooting cannot land the proximal end; the solve still does,
         // with every element balanced and the stiffness the tension's slope
-        let p = SheathParams {
-            pretension_n: 50.0,
-            presliding_mm: 1e-3,
-            ..params()
-        };
-        let mut t = TendonSheath::new(p, 270.0).unwrap();
+        let mut t = stiff_friction();
         let chain = t.chain;
         let mut shooting_failed = 0;
         for k in (0..=40).chain((0..40).rev()) {
@@ -1178,12 +1184,7 @@ mod tests {
         // a tick's solves after one that needed the whole chain skip
         // shooting; the same solves each starting afresh give the same
         // tensions and stiffnesses, and the flag is down after a commit
-        let p = SheathParams {
-            pretension_n: 50.0,
-            presliding_mm: 1e-3,
-            ..params()
-        };
-        let mut t = TendonSheath::new(p, 270.0).unwrap();
+        let mut t = stiff_friction();
         let mut fresh = t.clone();
         let mut went_steep = 0;
         for k in (0..=30).chain((0..30).rev()) {
