@@ -207,6 +207,22 @@ impl Kernel {
             Self::Avx512 => unsafe { nearest_linear_avx512(features, query) },
         }
     }
+
+    /// [`project`] (its bits) in this build: `x − mean` on the rows of
+    /// `rows` (each `x.len()` wide) into `out`, one value a row.
+    #[inline]
+    pub(crate) fn project(self, rows: &[f32], mean: &[f32], x: &[f32], out: &mut [f32]) {
+        debug_assert_eq!(mean.len(), x.len());
+        match self {
+            Self::Portable => project(rows, mean, x, out),
+            // SAFETY: as in `squared_distance`.
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx2 => unsafe { project_avx2(rows, mean, x, out) },
+            // SAFETY: as in `squared_distance`.
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx512 => unsafe { project_avx512(rows, mean, x, out) },
+        }
+    }
 }
 
 /// The linear scan, with the distance kernel `dist` inlined into the loop.
@@ -242,25 +258,135 @@ fn nearest_linear_portable(features: &[f32], query: &[f32]) -> (usize, f32) {
     nearest_linear_with(features, query, squared_distance_portable)
 }
 
+/// Lanes of the projection's sums: coordinate `l` of a 16-wide chunk goes
+/// to lane `l` (see [`project`]).
+const PROJECT_LANES: usize = 16;
+
+/// Rows the SIMD projections sum at once: independent sums that hide the
+/// adder's latency, sharing each chunk's `x − mean`.
+const PROJECT_GROUP: usize = 4;
+
+/// The end of one row's projection: the tail's components (fewer than
+/// [`PROJECT_LANES`]) into lanes `0, 1, …`, then the lanes summed in order.
+#[inline(always)]
+fn project_tail(mut acc: [f32; PROJECT_LANES], row: &[f32], mean: &[f32], x: &[f32]) -> f32 {
+    let start = x.len() - x.len() % PROJECT_LANES;
+    for (l, ((r, m), v)) in row[start..]
+        .iter()
+        .zip(&mean[start..])
+        .zip(&x[start..])
+        .enumerate()
+    {
+        acc[l] += r * (v - m);
+    }
+    acc.iter().sum()
+}
+
 /// Projects `x − mean` on the rows of `rows` (each `x.len()` wide) into
-/// `out` (one value per row): the coordinates the k-d tree holds.
+/// `out` (one value per row): the coordinates the k-d tree holds. Plain
+/// Rust, the reference: per row 16 running sums, lane `l` taking the
+/// components `l, l + 16, …` (`r · (v − m)`, a separate multiply and add),
+/// the tail into lanes `0, 1, …`, then the lanes summed in order.
 pub(crate) fn project(rows: &[f32], mean: &[f32], x: &[f32], out: &mut [f32]) {
     for (o, row) in out.iter_mut().zip(rows.chunks_exact(x.len())) {
-        let mut acc = [0.0_f32; 16];
-        let (cr, tr) = row.as_chunks::<16>();
-        let (cm, tm) = mean.as_chunks::<16>();
-        let (cx, tx) = x.as_chunks::<16>();
-        for ((r, m), v) in cr.iter().zip(cm).zip(cx) {
-            for l in 0..16 {
-                acc[l] += r[l] * (v[l] - m[l]);
-            }
-        }
-        for (l, ((r, m), v)) in tr.iter().zip(tm).zip(tx).enumerate() {
-            acc[l] += r * (v - m);
-        }
-        *o = acc.iter().sum();
+        *o = project_row(row, mean, x);
     }
 }
+
+/// One row of [`project`].
+#[inline(always)]
+fn project_row(row: &[f32], mean: &[f32], x: &[f32]) -> f32 {
+    let mut acc = [0.0_f32; PROJECT_LANES];
+    let (cr, _) = row.as_chunks::<PROJECT_LANES>();
+    let (cm, _) = mean.as_chunks::<PROJECT_LANES>();
+    let (cx, _) = x.as_chunks::<PROJECT_LANES>();
+    for ((r, m), v) in cr.iter().zip(cm).zip(cx) {
+        for l in 0..PROJECT_LANES {
+            acc[l] += r[l] * (v[l] - m[l]);
+        }
+    }
+    project_tail(acc, row, mean, x)
+}
+
+/// Defines `$name`, [`project`] with `$width` lanes per SIMD instruction of
+/// `$feature`: [`PROJECT_GROUP`] rows at a time, each chunk's `x − mean`
+/// made once for them, every lane's sum the reference's (the same
+/// operations in the same order, no FMA: the same bits). Rows past the
+/// last whole group go as the reference's.
+#[cfg(target_arch = "x86_64")]
+macro_rules! simd_project {
+    ($name:ident, $feature:literal, $width:literal,
+     $load:ident, $store:ident, $zero:ident, $sub:ident, $mul:ident, $add:ident) => {
+        #[target_feature(enable = $feature)]
+        fn $name(rows: &[f32], mean: &[f32], x: &[f32], out: &mut [f32]) {
+            use std::arch::x86_64::{$add, $load, $mul, $store, $sub, $zero};
+            const REGS: usize = PROJECT_LANES / $width;
+            let dim = x.len();
+            let chunks = dim / PROJECT_LANES;
+            let n = out.len().min(rows.len() / dim.max(1));
+            let whole = n - n % PROJECT_GROUP;
+            for g in (0..whole).step_by(PROJECT_GROUP) {
+                let mut acc = [[$zero(); REGS]; PROJECT_GROUP];
+                for c in 0..chunks {
+                    for k in 0..REGS {
+                        let at = c * PROJECT_LANES + k * $width;
+                        // SAFETY: `at + $width <= chunks * 16 <= dim`, the
+                        // length of `x` and `mean`, and row `g + j` (`< n`)
+                        // lies within `rows`; unaligned loads.
+                        unsafe {
+                            let d = $sub($load(x.as_ptr().add(at)), $load(mean.as_ptr().add(at)));
+                            for (j, acc) in acc.iter_mut().enumerate() {
+                                let r = $load(rows.as_ptr().add((g + j) * dim + at));
+                                acc[k] = $add(acc[k], $mul(r, d));
+                            }
+                        }
+                    }
+                }
+                for (j, acc) in acc.iter().enumerate() {
+                    let mut lanes = [0.0_f32; PROJECT_LANES];
+                    for (k, v) in acc.iter().enumerate() {
+                        // SAFETY: lanes holds REGS × $width floats; unaligned store.
+                        unsafe { $store(lanes.as_mut_ptr().add(k * $width), *v) };
+                    }
+                    let row = &rows[(g + j) * dim..(g + j + 1) * dim];
+                    out[g + j] = project_tail(lanes, row, mean, x);
+                }
+            }
+            for (o, row) in out[whole..n]
+                .iter_mut()
+                .zip(rows[whole * dim..].chunks_exact(dim))
+            {
+                *o = project_row(row, mean, x);
+            }
+        }
+    };
+}
+
+#[cfg(target_arch = "x86_64")]
+simd_project!(
+    project_avx2,
+    "avx2",
+    8,
+    _mm256_loadu_ps,
+    _mm256_storeu_ps,
+    _mm256_setzero_ps,
+    _mm256_sub_ps,
+    _mm256_mul_ps,
+    _mm256_add_ps
+);
+
+#[cfg(target_arch = "x86_64")]
+simd_project!(
+    project_avx512,
+    "avx512f",
+    16,
+    _mm512_loadu_ps,
+    _mm512_storeu_ps,
+    _mm512_setzero_ps,
+    _mm512_sub_ps,
+    _mm512_mul_ps,
+    _mm512_add_ps
+);
 
 #[cfg(test)]
 mod tests {
@@ -294,6 +420,39 @@ mod tests {
                 .map(|(x, y)| (f64::from(*x) - f64::from(*y)).powi(2))
                 .sum();
             assert!((f64::from(want) - exact).abs() <= gamma(n + 2) * exact);
+        }
+    }
+
+    /// Every build projects to the reference's bits, for widths with and
+    /// without a tail and row counts with and without a partial group.
+    #[test]
+    fn every_build_projects_the_same_bits() {
+        let mut kernels = vec![Kernel::Portable];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                kernels.push(Kernel::Avx2);
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                kernels.push(Kernel::Avx512);
+            }
+        }
+        for dim in [1, 15, 16, 17, 40, 256, 261] {
+            let x: Vec<f32> = (0..dim).map(|i| (i as f32 * 0.37).sin() * 3.1).collect();
+            let mean: Vec<f32> = (0..dim).map(|i| (i as f32 * 0.23).cos() * 0.4).collect();
+            for n in [1, 3, 4, 7, 8, 12, 16] {
+                let rows: Vec<f32> = (0..n * dim)
+                    .map(|i| (i as f32 * 0.11 + 0.5).sin() * 0.9)
+                    .collect();
+                let mut want = vec![0.0_f32; n];
+                project(&rows, &mean, &x, &mut want);
+                for k in &kernels {
+                    let mut got = vec![f32::NAN; n];
+                    k.project(&rows, &mean, &x, &mut got);
+                    let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&got), bits(&want), "{k:?}, dim {dim}, rows {n}");
+                }
+            }
         }
     }
 

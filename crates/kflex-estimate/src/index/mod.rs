@@ -70,7 +70,7 @@ use kflex_model::Bounds;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{EstimateError, Result};
-use kernel::{Kernel, project};
+use kernel::Kernel;
 use pca::BoundConstants;
 use tree::{MAX_DIMS, ProjectedTree};
 
@@ -347,12 +347,13 @@ impl FeatureIndex {
                 (mean, axes)
             }
         };
+        let kernel = Kernel::detect();
         let mut projected = vec![0.0_f32; n * dims];
         for (x, p) in features
             .chunks_exact(dim)
             .zip(projected.chunks_exact_mut(dims))
         {
-            project(&axes, &mean, x, p);
+            kernel.project(&axes, &mean, x, p);
         }
         let tree = ProjectedTree::new(&projected, projection)?;
         let bound = BoundConstants::new(&axes, dim, &features, &mean);
@@ -366,7 +367,7 @@ impl FeatureIndex {
             metadata,
             tree,
             bound,
-            kernel: Kernel::detect(),
+            kernel,
         })
     }
 
@@ -478,7 +479,8 @@ impl FeatureIndex {
         let dim = self.dim;
         let mut projected = [0.0_f32; MAX_DIMS];
         let dims = self.projection.get();
-        project(&self.axes, &self.mean, query, &mut projected[..dims]);
+        self.kernel
+            .project(&self.axes, &self.mean, query, &mut projected[..dims]);
         let full = |i: usize| {
             self.kernel
                 .squared_distance(&self.features[i * dim..][..dim], query)
