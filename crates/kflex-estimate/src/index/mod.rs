@@ -192,6 +192,15 @@ impl std::fmt::Debug for FeatureIndex {
 /// Checks every component of `rows` (`dim` wide) is finite and within
 /// [`MAX_FEATURE_ABS`].
 fn check_values(what: &'static str, rows: &[f32], dim: usize) -> Result<()> {
+    // the common case in one pass, without a branch per value (the loop
+    // below took a quarter of a query's search); NaN fails the comparison,
+    // so a bad value goes on to the loop, which names it
+    if rows
+        .iter()
+        .fold(true, |ok, v| ok & (f64::from(*v).abs() <= MAX_FEATURE_ABS))
+    {
+        return Ok(());
+    }
     for (index, row) in rows.chunks_exact(dim).enumerate() {
         for (component, v) in row.iter().enumerate() {
             let v = f64::from(*v);
