@@ -568,3 +568,43 @@ def test_hidden_part_silhouettes_render_up_front(models, camera, paper_db) -> No
     assert not lbhjae.hidden_parts_ready
     lbhjae.prepare_hidden_parts()
     assert lbhjae.hidden_parts_ready
+
+
+def test_index_queries_writes_each_band_with_the_frames_of_its_poses(models: Models, camera, tmp_path) -> None:
+    """tools/index_queries.py (the real queries of `tools/index_bench.py
+    --database`): each band file present gets its own entries back, bit for
+    bit, and the embeddings of the frames whose pose lies in that band; a
+    band without its file is left out, and a database of another SCNN is
+    refused."""
+    scnn = kflex.Scnn.load(models / "scnn_test.onnx")
+    bands = kflex.WorkingRegions.full(camera).bands
+    db_dir = tmp_path / "db"
+    db_dir.mkdir()
+    kept = (12, 26)  # the two widest bands: most frames land in them
+    for b in kept:
+        index = kflex.build_band_database(scnn, camera, kflex.Instrument.kflex(), bands[b], 4.0, 4.0)
+        index.save(db_dir / f"band-{b:03}.kfdb")
+    out = tmp_path / "out"
+    tool = REPO_ROOT / "tools" / "index_queries.py"
+    args = ["--database", str(db_dir), "--scnn", str(models / "scnn_test.onnx"), "--out", str(out)]
+    run = subprocess.run([sys.executable, str(tool), *args, "--frames", "300"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    report = json.loads(run.stdout)
+    assert report["frames"] == 300
+    assert {b["band"] for b in report["bands"]} == set(kept)
+    for b in report["bands"]:
+        index = kflex.FeatureIndex.load(db_dir / f"band-{b['band']:03}.kfdb")
+        here = Path(b["dir"])
+        assert np.array_equal(np.load(here / "db.npy"), index.features)
+        poses = np.load(here / "poses.npy")
+        assert np.array_equal(poses[:, 0], index.theta_deg) and np.array_equal(poses[:, 1], index.translation_mm)
+        queries = np.load(here / "queries.npy")
+        assert queries.shape == (b["queries"], 256) and queries.dtype == np.float32
+        assert np.all(np.isfinite(queries))
+    # a band built with another network is refused, naming its file
+    stale = kflex.FeatureIndex.load(db_dir / f"band-{kept[0]:03}.kfdb")
+    stale.set_metadata("scnn_sha256", "0" * 64)
+    stale.save(db_dir / f"band-{kept[0]:03}.kfdb")
+    bad = subprocess.run([sys.executable, str(tool), *args, "--frames", "300"], capture_output=True, text=True)
+    assert bad.returncode == 2
+    assert f"band-{kept[0]:03}.kfdb was built with another SCNN" in bad.stderr
