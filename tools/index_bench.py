@@ -82,6 +82,15 @@ def per_query_us(fn, queries, rounds: int = 3) -> tuple[float, float]:
             best = (times[len(times) // 2], mean)
     return best
 
+def print_table(head: tuple[str, ...], table: list[tuple[str, ...]]) -> None:
+    """A Markdown table: the header left-aligned, the cells right-aligned."""
+    widths = [max(len(c[i]) for c in [head, *table]) for i in range(len(head))]
+    print("| " + " | ".join(h.ljust(w) for h, w in zip(head, widths)) + " |")
+    print("|" + "|".join("-" * (w + 2) for w in widths) + "|")
+    for c in table:
+        print("| " + " | ".join(x.rjust(w) for x, w in zip(c, widths)) + " |")
+
+
 def bench_database(args: argparse.Namespace, target: Path, time_dir) -> int:
     """The `--database` mode: each band of a trained database against real queries."""
     data = target / "index_bench" / "database"
@@ -146,11 +155,7 @@ def bench_database(args: argparse.Namespace, target: Path, time_dir) -> int:
             f"{pooled('full'):.1f}", f"{min(min(r['agree_ckdtree'], r['agree_faiss']) for r in rows):.3f}",
         )
     )
-    widths = [max(len(c[i]) for c in [head, *table]) for i in range(len(head))]
-    print("| " + " | ".join(h.ljust(w) for h, w in zip(head, widths)) + " |")
-    print("|" + "|".join("-" * (w + 2) for w in widths) + "|")
-    for c in table:
-        print("| " + " | ".join(x.rjust(w) for x, w in zip(c, widths)) + " |")
+    print_table(head, table)
     print(
         "\npooled: each band's median weighted by its queries (IBJAE asks one band's index at a time); "
         "cKDTree, faiss: called from a Python loop; agree: the lowest fraction of their answers equal "
@@ -271,11 +276,7 @@ def main() -> int:
         )
         for r in rows
     ]
-    widths = [max(len(c[i]) for c in [head, *table]) for i in range(len(head))]
-    print("| " + " | ".join(h.ljust(w) for h, w in zip(head, widths)) + " |")
-    print("|" + "|".join("-" * (w + 2) for w in widths) + "|")
-    for c in table:
-        print("| " + " | ".join(x.rjust(w) for x, w in zip(c, widths)) + " |")
+    print_table(head, table)
     print(
         "\nindex, linear: kflex (Rust, timed in Rust); cKDTree, faiss: called from a Python loop "
         "(py call = that loop's own cost per call); faiss batched: all queries in one call, per query; "

@@ -120,34 +120,6 @@ macro_rules! simd_squared_distance {
     };
 }
 
-#[cfg(target_arch = "x86_64")]
-simd_squared_distance!(
-    squared_distance_avx2,
-    "avx2",
-    8,
-    __m256,
-    _mm256_loadu_ps,
-    _mm256_storeu_ps,
-    _mm256_setzero_ps,
-    _mm256_sub_ps,
-    _mm256_mul_ps,
-    _mm256_add_ps
-);
-
-#[cfg(target_arch = "x86_64")]
-simd_squared_distance!(
-    squared_distance_avx512,
-    "avx512f",
-    16,
-    __m512,
-    _mm512_loadu_ps,
-    _mm512_storeu_ps,
-    _mm512_setzero_ps,
-    _mm512_sub_ps,
-    _mm512_mul_ps,
-    _mm512_add_ps
-);
-
 /// Which build of the distance kernel this CPU runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Kernel {
@@ -366,11 +338,28 @@ macro_rules! simd_project {
     };
 }
 
+/// Both SIMD kernels of one instruction set: the distance
+/// ([`simd_squared_distance`]) and the projection ([`simd_project`]).
 #[cfg(target_arch = "x86_64")]
-simd_project!(
+macro_rules! simd_kernels {
+    ($distance:ident, $project:ident, $feature:literal, $width:literal, $vec:ident,
+     $load:ident, $store:ident, $zero:ident, $sub:ident, $mul:ident, $add:ident) => {
+        simd_squared_distance!(
+            $distance, $feature, $width, $vec, $load, $store, $zero, $sub, $mul, $add
+        );
+        simd_project!(
+            $project, $feature, $width, $load, $store, $zero, $sub, $mul, $add
+        );
+    };
+}
+
+#[cfg(target_arch = "x86_64")]
+simd_kernels!(
+    squared_distance_avx2,
     project_avx2,
     "avx2",
     8,
+    __m256,
     _mm256_loadu_ps,
     _mm256_storeu_ps,
     _mm256_setzero_ps,
@@ -380,10 +369,12 @@ simd_project!(
 );
 
 #[cfg(target_arch = "x86_64")]
-simd_project!(
+simd_kernels!(
+    squared_distance_avx512,
     project_avx512,
     "avx512f",
     16,
+    __m512,
     _mm512_loadu_ps,
     _mm512_storeu_ps,
     _mm512_setzero_ps,
@@ -396,10 +387,8 @@ simd_project!(
 mod tests {
     use super::*;
 
-    #[test]
-    fn every_build_returns_the_same_bits() {
-        let a: Vec<f32> = (0..261).map(|i| (i as f32 * 0.37).sin() * 3.1).collect();
-        let b: Vec<f32> = (0..261).map(|i| (i as f32 * 0.11).cos() * 2.7).collect();
+    /// Every build of the kernels this CPU runs, the portable one first.
+    fn every_kernel() -> Vec<Kernel> {
         let mut kernels = vec![Kernel::Portable];
         #[cfg(target_arch = "x86_64")]
         {
@@ -410,6 +399,14 @@ mod tests {
                 kernels.push(Kernel::Avx512);
             }
         }
+        kernels
+    }
+
+    #[test]
+    fn every_build_returns_the_same_bits() {
+        let a: Vec<f32> = (0..261).map(|i| (i as f32 * 0.37).sin() * 3.1).collect();
+        let b: Vec<f32> = (0..261).map(|i| (i as f32 * 0.11).cos() * 2.7).collect();
+        let kernels = every_kernel();
         for n in [1, 15, 16, 17, 31, 32, 33, 64, 255, 256, 261] {
             let want = squared_distance_portable(&a[..n], &b[..n]);
             for k in &kernels {
@@ -431,16 +428,7 @@ mod tests {
     /// without a tail and row counts with and without a partial group.
     #[test]
     fn every_build_projects_the_same_bits() {
-        let mut kernels = vec![Kernel::Portable];
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                kernels.push(Kernel::Avx2);
-            }
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                kernels.push(Kernel::Avx512);
-            }
-        }
+        let kernels = every_kernel();
         for dim in [1, 15, 16, 17, 40, 256, 261] {
             let x: Vec<f32> = (0..dim).map(|i| (i as f32 * 0.37).sin() * 3.1).collect();
             let mean: Vec<f32> = (0..dim).map(|i| (i as f32 * 0.23).cos() * 0.4).collect();
