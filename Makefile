@@ -122,9 +122,11 @@ bench:
 	python3 tools/bench_table.py
 
 # the feature index against a linear scan, scipy's cKDTree and faiss's
-# IndexFlatL2 on the same data (its own venv, tools/.venv-bench)
+# IndexFlatL2 on the same data (its own venv, tools/.venv-bench): synthetic
+# embeddings, or with DB=dir SCNN=file a trained database's bands queried
+# with fresh frames' embeddings (needs `make venv` for kflex)
 index-bench:
-	$(PYTHON) tools/index_bench.py
+	$(PYTHON) tools/index_bench.py $(if $(DB),--database $(DB) --scnn $(SCNN))
 
 fit:
 	KFLEX_FIT_PROTOCOL=1 $(CARGO) run --release --locked -p kflex-control --example fit_calibration
