@@ -156,16 +156,11 @@ const JOINED: u32 = 1 << 31;
 /// σ 0.1 16 → 12, gain 1.6 8 → 5), at 7–10 % more time for the
 /// segmentation.
 pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, p: &SegmentParams, noise: f32) {
-    fn find(parent: &mut [u32], mut i: u32) -> u32 {
-        while parent[i as usize] != i {
-            parent[i as usize] = parent[parent[i as usize] as usize];
-            i = parent[i as usize];
-        }
-        i
-    }
-    let d2 = p.merge_distance * p.merge_distance;
-    let c2 = p.merge_chroma * p.merge_chroma;
-    let n2 = noise * noise;
+    let limits = MergeLimits {
+        d2: p.merge_distance * p.merge_distance,
+        c2: p.merge_chroma * p.merge_chroma,
+        n2: noise * noise,
+    };
     let Scratch {
         labels,
         regions,
@@ -177,40 +172,12 @@ pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, p: &SegmentParams
     parent.clear();
     parent.reserve(cols * rows);
     parent.extend(0..regions.len() as u32);
-    // joins the regions of leaves `a` and `b` where their means are close:
-    // within the noise's allowance, plus `fixed` times the fixed thresholds
-    let try_merge = |a: u32, b: u32, fixed: f32, parent: &mut [u32], regions: &mut [Region]| {
-        let (ra, rb) = (find(parent, a), find(parent, b));
-        if ra == rb {
-            return true;
-        }
-        let (pa, pb) = (regions[ra as usize], regions[rb as usize]);
-        let gap = (0..3)
-            .map(|k| (pa.mean[k] - pb.mean[k]).powi(2))
-            .sum::<f32>();
-        let count = pa.count + pb.count;
-        let spread = count / (pa.count * pb.count);
-        // the colour distance, then the chromaticity's: a mean of n pixels
-        // with noise σ has chromaticity noise about σ √2 / (L √n)
-        let (ca, cb) = (pa.chroma, pb.chroma);
-        let l = pa.lum.min(pb.lum).max(0.05);
-        let dc2 = (ca[0] - cb[0]).powi(2) + (ca[1] - cb[1]).powi(2);
-        let close = (gap < fixed * d2 + 3.0 * n2 * spread)
-            & (dc2 * l * l < fixed * c2 * l * l + 2.0 * n2 * spread);
-        if close {
-            let (wa, wb) = (pa.count / count, pb.count / count);
-            parent[rb as usize] = ra;
-            regions[ra as usize] =
-                Region::of_mean([0, 1, 2].map(|k| wa * pa.mean[k] + wb * pb.mean[k]), count);
-        }
-        close
-    };
     record_pairs(labels, cols, rows, leaf_edges, last_right, |a, b| {
-        try_merge(a, b, 0.0, parent, regions)
+        try_merge(a, b, 0.0, &limits, parent, regions)
     });
     for e in leaf_edges.iter_mut() {
         if e[2] & JOINED == 0 {
-            try_merge(e[0], e[1], 1.0, parent, regions);
+            try_merge(e[0], e[1], 1.0, &limits, parent, regions);
         }
         e[2] &= !JOINED;
     }
@@ -218,6 +185,61 @@ pub(super) fn merge(s: &mut Scratch, cols: usize, rows: usize, p: &SegmentParams
         let root = find(parent, i);
         parent[i as usize] = root;
     }
+}
+
+/// The merge's squared thresholds: colour distance, chromaticity, noise.
+struct MergeLimits {
+    d2: f32,
+    c2: f32,
+    n2: f32,
+}
+
+/// The root of `i`'s set, halving the path on the way.
+#[inline(always)]
+fn find(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        parent[i as usize] = parent[parent[i as usize] as usize];
+        i = parent[i as usize];
+    }
+    i
+}
+
+/// Joins the regions of leaves `a` and `b` where their means are close:
+/// within the noise's allowance, plus `fixed` times the fixed thresholds.
+/// Whether they are one region after.
+#[inline(always)]
+fn try_merge(
+    a: u32,
+    b: u32,
+    fixed: f32,
+    l: &MergeLimits,
+    parent: &mut [u32],
+    regions: &mut [Region],
+) -> bool {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra == rb {
+        return true;
+    }
+    let (pa, pb) = (regions[ra as usize], regions[rb as usize]);
+    let gap = (0..3)
+        .map(|k| (pa.mean[k] - pb.mean[k]).powi(2))
+        .sum::<f32>();
+    let count = pa.count + pb.count;
+    let spread = count / (pa.count * pb.count);
+    // the colour distance, then the chromaticity's: a mean of n pixels
+    // with noise σ has chromaticity noise about σ √2 / (L √n)
+    let (ca, cb) = (pa.chroma, pb.chroma);
+    let lum = pa.lum.min(pb.lum).max(0.05);
+    let dc2 = (ca[0] - cb[0]).powi(2) + (ca[1] - cb[1]).powi(2);
+    let close = (gap < fixed * l.d2 + 3.0 * l.n2 * spread)
+        & (dc2 * lum * lum < fixed * l.c2 * lum * lum + 2.0 * l.n2 * spread);
+    if close {
+        let (wa, wb) = (pa.count / count, pb.count / count);
+        parent[rb as usize] = ra;
+        regions[ra as usize] =
+            Region::of_mean([0, 1, 2].map(|k| wa * pa.mean[k] + wb * pb.mean[k]), count);
+    }
+    close
 }
 
 /// Lists in `leaf_edges` every pair of leaves across a cell edge, `[a, b,
