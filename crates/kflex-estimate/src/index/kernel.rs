@@ -8,7 +8,10 @@
 //! AVX-512 builds of it (intrinsics, chosen at run time) only process 8 or 16
 //! lanes per instruction, with the same separate multiply and add (no FMA),
 //! so every build returns the same bits, and the index and the linear scan compare the very
-//! same numbers (ties included).
+//! same numbers (ties included). The projection on the principal axes is
+//! likewise one order on every CPU ([`project`], 16 running sums a row);
+//! its AVX2 and AVX-512 builds sum four rows at once, so a database's
+//! projected points and a query's are the same bits wherever they are made.
 
 /// Lanes of the distance kernel: two AVX-512 registers, four AVX2 ones, so
 /// that independent sums hide the adder's latency.
