@@ -82,6 +82,7 @@ def per_query_us(fn, queries, rounds: int = 3) -> tuple[float, float]:
             best = (times[len(times) // 2], mean)
     return best
 
+
 def print_table(head: tuple[str, ...], table: list[tuple[str, ...]]) -> None:
     """A Markdown table: the header left-aligned, the cells right-aligned."""
     widths = [max(len(c[i]) for c in [head, *table]) for i in range(len(head))]
@@ -107,11 +108,17 @@ def bench_database(args: argparse.Namespace, target: Path, time_dir) -> int:
             "--out", data,
             "--frames", str(args.frames),
         ],
-        check=True,
         capture_output=True,
         text=True,
     )
+    if made.returncode != 0:
+        print(made.stderr, end="", file=sys.stderr)
+        print(f"error: tools/index_queries.py failed (exit {made.returncode})", file=sys.stderr)
+        return 2
     bands = json.loads(made.stdout)["bands"]
+    if not bands:
+        print(f"error: no frame landed in a band of {args.database}", file=sys.stderr)
+        return 2
     rows = []
     for b in bands:
         row = time_dir(Path(b["dir"]))
