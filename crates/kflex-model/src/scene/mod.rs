@@ -268,6 +268,8 @@ pub struct SceneRenderer {
     patches: Vec<(u32, [f32; 3])>,
     /// The encoded background values a frame's patches covered, to put back.
     undo: Vec<[f32; 3]>,
+    /// The patches' colours through the lens (three values a patch), then encoded.
+    lit: Vec<f32>,
     /// The looks of a frame's patches, queued and made a batch at a time.
     queue: Box<LookQueue>,
     /// A tile's edge pixels (their patch and background colour) and the
@@ -447,17 +449,19 @@ impl SceneRenderer {
                     &mut slot.insert((bg_key, encoded)).1
                 }
             };
-            self.undo.clear();
+            // the patches' light through the lens, encoded all at once
+            // (eight lanes wide), then put over the background
+            self.lit.clear();
             for &(p, c) in &self.patches {
-                let (p, v) = (
-                    p as usize,
-                    vignetting.get(p as usize).copied().unwrap_or(1.0),
-                );
-                let px = &mut encoded[3 * p..3 * p + 3];
+                let v = vignetting.get(p as usize).copied().unwrap_or(1.0);
+                self.lit.extend(c.map(|c| c * v));
+            }
+            sensor.encode_all(&mut self.lit);
+            self.undo.clear();
+            for (&(p, _), lit) in self.patches.iter().zip(self.lit.chunks_exact(3)) {
+                let px = &mut encoded[3 * p as usize..3 * p as usize + 3];
                 self.undo.push([px[0], px[1], px[2]]);
-                for (e, c) in px.iter_mut().zip(c) {
-                    *e = sensor.encode(c * v);
-                }
+                px.copy_from_slice(lit);
             }
             for (y, out) in rgb.chunks_exact_mut(3 * ww).enumerate() {
                 let src = origin + 3 * y * sw;
