@@ -490,7 +490,8 @@ impl SceneRenderer {
             for (y, out) in rgb.chunks_exact_mut(3 * ww).enumerate() {
                 let src = origin + 3 * y * sw;
                 row.clear();
-                row.extend(img[src..src + 3 * ww].iter().map(|&v| sensor.encode(v)));
+                row.extend_from_slice(&img[src..src + 3 * ww]);
+                sensor.encode_all(&mut row);
                 sensor.span_encoded(first(y), &row, out);
             }
             self.row = row;
