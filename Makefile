@@ -129,7 +129,7 @@ index-bench:
 	$(PYTHON) tools/index_bench.py $(if $(DB),--database $(DB) --scnn $(SCNN))
 
 fit:
-	KFLEX_FIT_PROTOCOL=1 $(CARGO) run --release --locked -p kflex-control --example fit_calibration
+	$(CARGO) run --release --locked -p kflex-control --example fit_calibration
 
 # the picture of the calibrated loops in crates/kflex-model/CALIBRATION.md
 loops: venv

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Why the nominal plant's loop narrows between 75 and 105 deg of bend.
+"""Where the nominal plant's loop is widest, and why its width grows with the
+bend through the point where that moves.
 
     .venv/bin/python tools/width_dip.py
 
@@ -17,15 +18,20 @@ shipped defaults, true angle, `OpenLoopScenario`'s defaults) and prints:
 
 The gap sampled this way reads within 0.03 deg of `max_hysteresis_deg`.
 
-The widest gap lies low on the loop (θ_d near 18 deg) while the antagonist
-is still taut there, and is the antagonist's drag: its pretension, eaten
-by the sheath's path change as the bend grows, falls with the bend, and so
-does the gap. Above the point where the antagonist goes slack the rising
-branch climbs freely; that point moves down the rising branch as the bend
-grows, and once it passes below the old widest point (beyond 105 deg) the
-widest gap moves up the loop and grows with the bend again. The width is
-the larger of the two, and dips where the first falls before the second
-takes over (CALIBRATION.md, "What is not met").
+The loop has two wide places. Low on it (θ_d near 18 deg) the antagonist
+is still taut on the rise, and the gap there is its drag; its pretension,
+eaten by the sheath's path change as the bend grows, falls with the bend,
+so this gap grows ever more slowly and would fall. Above the point where
+the antagonist goes slack the rising branch climbs without it; that point
+moves down the rising branch as the bend grows, and once it lies below the
+low wide place the widest gap moves up the loop (θ_d 22-28 deg), where it
+grows with the bend. The width is the larger of the two. On the plant
+shipped until the last refit of 2026-11-29 (pretension 3 N, path change
+-0.103 mm/rad) the low gap began to fall before the high one took over,
+and the width dipped by 2.3 % from 75 to 105 deg; on today's (2.2 N,
+-0.077 mm/rad) the antagonist goes slack lower on the rise, the high gap
+takes over at 90 deg while the low one still grows, and the width grows at
+every step (CALIBRATION.md, "Loop shape").
 """
 import numpy as np
 

@@ -34,9 +34,9 @@ fn check(grid: OpenLoopGrid, width_tol: [f64; 4]) {
             .all(|w| w[1].rmse_deg.mean > w[0].rmse_deg.mean)
     );
     // the paper's widths grow too (9.2 to 18.4 deg); the plant's loops are
-    // wider at every bend than straight (CALIBRATION.md: they grow up to
-    // 75 deg, dip by 2.3 % to 105 deg, grow to 165 deg, then stay within
-    // 10 % of their largest)
+    // wider at every bend than straight (CALIBRATION.md: they grow at every
+    // 15 deg up to 180 deg, then stay within 10 % of their largest;
+    // `plant_fidelity.rs` checks that)
     for k in 1..4 {
         assert!(rows[k].max_hysteresis_deg.mean > rows[0].max_hysteresis_deg.mean);
     }

@@ -77,11 +77,10 @@ fn rmse_grows_with_the_bend_and_the_loop_width_saturates() {
     // The goals: RMSE growing at every 15 deg from 0 to 270, the loop width
     // growing up to 180 deg and staying within 10 % of its largest beyond.
     // Measured (CALIBRATION.md): the RMSE grows at every step; the width
-    // grows up to 75 deg (by 24 %), dips by 2.3 % to 105 deg, grows again to
-    // its largest at 165 deg, then stays within 8.1 % of it out to 270 deg: it
-    // grows up to 180 deg read at the paper's sheath angles (the fit's
-    // goal), not at every step, and far less than the paper's (9.2 to 18.3
-    // deg). The plant before the refit of 2026-11-29 dipped by 4 %.
+    // grows at every step up to 180 deg (by 0.28 % at the least, from 165 to
+    // 180 deg; 31 % in all, far less than the paper's 9.2 to 18.3 deg), then
+    // stays within 8.0 % of its largest out to 270 deg. The plants shipped
+    // before the last refit of 2026-11-29 dipped by 2.3 % and 4 % on the way.
     let sheaths: Vec<f64> = (0..=18).map(|k| 15.0 * f64::from(k)).collect();
     let rows = run(OpenLoopGrid {
         sheaths_deg: sheaths,
@@ -109,20 +108,16 @@ fn rmse_grows_with_the_bend_and_the_loop_width_saturates() {
         15 * peak
     );
     assert!(largest > 1.1 * widths[0], "{widths:?}");
-    // ... up to 180 deg at the paper's sheath angles, 0 < 90 < 180 ...
-    assert!(
-        widths[0] < widths[6] && widths[6] < widths[12],
-        "{widths:?}"
-    );
-    // ... never falling on the way by more than 3 % below the widest so far
-    // (the goal is growth at every step; the plant before dipped by 4 %)
-    let mut widest = 0.0f64;
-    for (k, w) in widths.iter().enumerate().take(13) {
-        widest = widest.max(*w);
+    // ... at every 15 deg up to 180 deg, each step by more than 0.1 %
+    // (the fit holds each to 0.2 %) ...
+    for (k, w) in widths.windows(2).enumerate().take(12) {
         assert!(
-            *w >= 0.97 * widest,
-            "loop width {w} at {} deg is more than 3 % below {widest} before it",
-            15 * k
+            w[1] > 1.001 * w[0],
+            "loop width did not grow from {} deg ({}) to {} deg ({}): {widths:?}",
+            15 * k,
+            w[0],
+            15 * (k + 1),
+            w[1]
         );
     }
     // ... and then saturates rather than collapsing: from its peak on (the

@@ -308,7 +308,7 @@ impl PyPlantConfig {
     /// A copy drawn around this one for a repeated experiment (the set-up's
     /// parameters scaled by `1 + rel_std · N(0, 1)`, the build's by
     /// `1 + rel_std/3 · N(0, 1)`, each clamped to [0.5, 1.5], and a drawn
-    /// seating, which homes the drive within the middle 60 % of its play);
+    /// seating, which homes the drive within the middle 70 % of its play);
     /// deterministic in `seed`. Raises
     /// `RangeError` for `rel_std` outside [0, 0.5] or a parameter out of range.
     fn perturbed(&self, py: Python<'_>, seed: u64, rel_std: f64) -> Result<Self> {
