@@ -452,15 +452,22 @@ impl SceneRenderer {
             // the patches' light through the lens, encoded all at once
             // (eight lanes wide), then put over the background
             self.lit.clear();
-            for &(p, c) in &self.patches {
+            self.lit.resize(3 * self.patches.len(), 0.0);
+            for (lit, &(p, c)) in self.lit.chunks_exact_mut(3).zip(&self.patches) {
                 let v = vignetting.get(p as usize).copied().unwrap_or(1.0);
-                self.lit.extend(c.map(|c| c * v));
+                lit.copy_from_slice(&c.map(|c| c * v));
             }
             sensor.encode_all(&mut self.lit);
             self.undo.clear();
-            for (&(p, _), lit) in self.patches.iter().zip(self.lit.chunks_exact(3)) {
+            self.undo.resize(self.patches.len(), [0.0; 3]);
+            for ((&(p, _), lit), old) in self
+                .patches
+                .iter()
+                .zip(self.lit.chunks_exact(3))
+                .zip(self.undo.iter_mut())
+            {
                 let px = &mut encoded[3 * p as usize..3 * p as usize + 3];
-                self.undo.push([px[0], px[1], px[2]]);
+                *old = [px[0], px[1], px[2]];
                 px.copy_from_slice(lit);
             }
             for (y, out) in rgb.chunks_exact_mut(3 * ww).enumerate() {
@@ -496,25 +503,37 @@ impl SceneRenderer {
             }
             self.row = row;
         }
-        // the masks: each centre hit inside the window, under the tape or not
+        // the masks: each centre hit inside the window, under the tape or
+        // not, read row by row from the work region's hit table (the window
+        // lies inside the work region, which holds every centre hit)
         let mut instrument = vec![0u8; ww * wh];
         let mut occluder = vec![0u8; ww * wh];
-        for (hit, &[x, y]) in self.hits.iter().zip(&self.hit_pixels) {
-            let (Some(wx), Some(wy)) = (
-                (x as usize)
-                    .checked_sub(window.x0 as usize)
-                    .filter(|&wx| wx < ww),
-                (y as usize)
-                    .checked_sub(window.y0 as usize)
-                    .filter(|&wy| wy < wh),
-            ) else {
-                continue;
-            };
-            let i = wy * ww + wx;
-            if under_tape(hit, band) {
-                occluder[i] = 1;
-            } else {
-                instrument[i] = 1;
+        let work_w = work.width as usize;
+        let (dx, dy) = ((window.x0 - work.x0) as usize, (window.y0 - work.y0) as usize);
+        for (y, (inst, occl)) in instrument
+            .chunks_exact_mut(ww)
+            .zip(occluder.chunks_exact_mut(ww))
+            .enumerate()
+        {
+            let start = (dy + y) * work_w + dx;
+            let row = &self.inside[start..start + ww];
+            match band {
+                None => {
+                    for (m, &h) in inst.iter_mut().zip(row) {
+                        *m = u8::from(h != 0);
+                    }
+                }
+                Some(_) => {
+                    for ((m, o), &h) in inst.iter_mut().zip(occl.iter_mut()).zip(row) {
+                        if let Some(hit) = h.checked_sub(1).and_then(|k| self.hits.get(k as usize)) {
+                            if under_tape(hit, band) {
+                                *o = 1;
+                            } else {
+                                *m = 1;
+                            }
+                        }
+                    }
+                }
             }
         }
         Ok(Frame {
