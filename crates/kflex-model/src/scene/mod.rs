@@ -509,7 +509,10 @@ impl SceneRenderer {
         let mut instrument = vec![0u8; ww * wh];
         let mut occluder = vec![0u8; ww * wh];
         let work_w = work.width as usize;
-        let (dx, dy) = ((window.x0 - work.x0) as usize, (window.y0 - work.y0) as usize);
+        let (dx, dy) = (
+            (window.x0 - work.x0) as usize,
+            (window.y0 - work.y0) as usize,
+        );
         for (y, (inst, occl)) in instrument
             .chunks_exact_mut(ww)
             .zip(occluder.chunks_exact_mut(ww))
@@ -525,7 +528,8 @@ impl SceneRenderer {
                 }
                 Some(_) => {
                     for ((m, o), &h) in inst.iter_mut().zip(occl.iter_mut()).zip(row) {
-                        if let Some(hit) = h.checked_sub(1).and_then(|k| self.hits.get(k as usize)) {
+                        if let Some(hit) = h.checked_sub(1).and_then(|k| self.hits.get(k as usize))
+                        {
                             if under_tape(hit, band) {
                                 *o = 1;
                             } else {
