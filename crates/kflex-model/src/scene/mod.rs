@@ -510,16 +510,19 @@ impl SceneRenderer {
         let mut occluder = vec![0u8; ww * wh];
         let work_w = work.width as usize;
         let (dx, dy) = (
-            (window.x0 - work.x0) as usize,
-            (window.y0 - work.y0) as usize,
+            window.x0.saturating_sub(work.x0) as usize,
+            window.y0.saturating_sub(work.y0) as usize,
         );
+        debug_assert!(work.holds(&window), "the work region is the window grown");
         for (y, (inst, occl)) in instrument
             .chunks_exact_mut(ww)
             .zip(occluder.chunks_exact_mut(ww))
             .enumerate()
         {
             let start = (dy + y) * work_w + dx;
-            let row = &self.inside[start..start + ww];
+            let Some(row) = self.inside.get(start..start + ww) else {
+                break;
+            };
             match band {
                 None => {
                     for (m, &h) in inst.iter_mut().zip(row) {
