@@ -29,12 +29,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .chain(Condition::TAPE.iter())
         .nth(condition.parse()?)
         .ok_or("condition index out of range")?;
-    let background = match background.as_str() {
-        "colon" => Background::Colon,
-        "stomach" => Background::Stomach,
-        "larynx" => Background::Larynx,
-        other => return Err(format!("unknown background {other}").into()),
-    };
+    let background: Background = background.parse()?;
     let case = Case {
         background,
         theta_deg: theta.parse()?,
