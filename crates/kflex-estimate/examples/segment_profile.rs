@@ -50,12 +50,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 ..FrameParams::default()
             };
             let f = SceneRenderer::new().render_window(&camera, &shape, &params, band)?;
-            let whole = Roi {
-                x0: 0,
-                y0: 0,
-                width: f.width,
-                height: f.height,
-            };
+            let whole = Roi::whole(f.width, f.height);
             (f, whole)
         }
     };
