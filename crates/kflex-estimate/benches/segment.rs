@@ -67,12 +67,7 @@ fn bench(c: &mut Criterion) {
             .and_then(|w| w.at(30.0, 10.0).map(|b| b.roi))
             .expect("working band");
         let mut segmenter = Segmenter::new(SegmentParams::default()).expect("params");
-        let whole = |f: &Frame| Roi {
-            x0: 0,
-            y0: 0,
-            width: f.width,
-            height: f.height,
-        };
+        let whole = |f: &Frame| Roi::whole(f.width, f.height);
         for (name, background) in [
             ("segment_band_10mm_colon", Background::Colon),
             ("segment_band_10mm_stomach", Background::Stomach),
@@ -96,12 +91,7 @@ fn bench(c: &mut Criterion) {
         let f = SceneRenderer::new()
             .render(&camera, &shape, &FrameParams::default())
             .expect("frame");
-        let roi = Roi {
-            x0: 0,
-            y0: 0,
-            width: f.width,
-            height: f.height,
-        };
+        let roi = Roi::whole(f.width, f.height);
         // the loop's way: one Segmenter kept from frame to frame
         let mut segmenter = Segmenter::new(SegmentParams::default()).expect("params");
         time_kept(c, name, &mut segmenter, &f, roi);
