@@ -213,7 +213,8 @@ impl Kbjae {
     ///
     /// # Errors
     /// [`crate::EstimateError::Length`] when the slices differ in length;
-    /// [`crate::EstimateError::Model`] for a non-finite input;
+    /// [`crate::EstimateError::Model`] for a non-finite input, an angle
+    /// beyond ±[`MAX_THETA_DEG`] or a rate beyond ±[`MAX_RATE_DEG_PER_S`];
     /// [`crate::EstimateError::Onnx`] when the model fails.
     pub fn errors(&mut self, theta_deg: &[f32], rate_deg_per_s: &[f32]) -> Result<Vec<f32>> {
         if theta_deg.len() != rate_deg_per_s.len() {
@@ -237,6 +238,11 @@ impl Kbjae {
                 }
                 .into());
             }
+            // as `predict`: past these the network sees infinities
+            kflex_model::Bounds::closed(-MAX_THETA_DEG, MAX_THETA_DEG)
+                .check("theta_deg", f64::from(t))?;
+            kflex_model::Bounds::closed(-MAX_RATE_DEG_PER_S, MAX_RATE_DEG_PER_S)
+                .check("rate_deg_per_s", f64::from(r))?;
             input.extend([t, r]);
         }
         let mut out = vec![0.0f32; theta_deg.len()];

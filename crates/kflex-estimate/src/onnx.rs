@@ -487,8 +487,29 @@ impl OnnxModel {
     ///
     /// # Errors
     /// [`EstimateError::Length`] when a buffer does not hold `batch`
-    /// items; [`EstimateError::Onnx`] when ONNX Runtime fails.
+    /// items; [`EstimateError::Onnx`] when ONNX Runtime fails, or when the
+    /// model answers with a value that is not finite (a damaged or
+    /// tampered weight, whatever the input: no NaN leaves a model).
     pub fn run(&mut self, input: &[f32], batch: usize, output: &mut [f32]) -> Result<()> {
+        self.run_unchecked(input, batch, output)?;
+        if let Some(k) = output.iter().position(|v| !v.is_finite()) {
+            let per_out = self.output.per_item().max(1);
+            return Err(EstimateError::Onnx {
+                path: self.path.clone(),
+                message: format!(
+                    "the model answered {} (value {} of item {} of {batch}); \
+                     its weights may be damaged: restore or retrain the file",
+                    output[k],
+                    k % per_out,
+                    k / per_out
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// [`OnnxModel::run`] without the check of the answer.
+    fn run_unchecked(&mut self, input: &[f32], batch: usize, output: &mut [f32]) -> Result<()> {
         let (per_in, per_out) = (self.input.per_item(), self.output.per_item());
         for (what, got, want) in [
             ("model input", input.len(), batch * per_in),

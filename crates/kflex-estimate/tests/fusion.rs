@@ -495,3 +495,86 @@ proptest! {
         }
     }
 }
+
+/// Every parameter and every input at the ends of its accepted range, in a
+/// mixed order: the estimate stays finite, for both filters. (A `σ_z` of
+/// 1e-200 deg was once accepted: its square is zero in `f64`, and the
+/// paper's filter returned NaN from its first update.)
+#[test]
+fn the_filters_stay_finite_at_the_ends_of_every_range() {
+    let dts = [1e-9, 1e-3, 3600.0];
+    let zs = [None, Some(0.0), Some(1e6), Some(-1e6)];
+    let sigmas = [None, Some(0.0), Some(1e-300), Some(1e6)];
+    let mut ticks = Vec::new();
+    for &dt in &dts {
+        for &kb in &zs {
+            for &ib in &zs {
+                for &sg in &sigmas {
+                    ticks.push((dt, kb, ib, sg));
+                }
+            }
+        }
+    }
+    // a fixed shuffle: each tick after one far from it
+    let order: Vec<usize> = (0..ticks.len()).map(|i| (i * 37) % ticks.len()).collect();
+    let check = |name: String, filter: &mut dyn Fusion| {
+        for &k in &order {
+            let (dt, kb, ib, sg) = ticks[k];
+            let m = Measurements {
+                kbjae_deg: kb,
+                ibjae_deg: ib,
+                ibjae_sigma_deg: sg,
+                ibjae_occluded: false,
+            };
+            let e = filter.step(dt, m).unwrap();
+            let finite = e.theta_hat_deg.is_finite()
+                && e.theta_hat_rate_deg_per_s.is_finite()
+                && e.covariance.iter().flatten().all(|c| c.is_finite());
+            assert!(finite, "{name}: tick {dt} s {m:?} gave {e:?}");
+        }
+    };
+    for sz in [1e-6, 1e6] {
+        for sa in [0.0, 1e-300, 1e6] {
+            for model_dt_s in [1e-300, 3600.0] {
+                let p = KalmanParams {
+                    sigma_z_deg: [sz, sz],
+                    sigma_a: sa,
+                    model_dt_s,
+                    ..KalmanParams::default()
+                };
+                check(format!("{p:?}"), &mut PaperKalman::new(p).unwrap());
+            }
+        }
+    }
+    for sz in [1e-6, 1e3] {
+        for accel in [1e-300, 1e9] {
+            for bias in [0.0, 1e-300, 1e3] {
+                let p = AdaptiveParams {
+                    initial_sigma_z_deg: [sz, sz],
+                    min_sigma_z_deg: sz,
+                    accel_psd_deg2_per_s3: accel,
+                    bias_sigma_deg: bias,
+                    ..AdaptiveParams::default()
+                };
+                check(format!("{p:?}"), &mut AdaptiveKalman::new(p).unwrap());
+            }
+        }
+    }
+    // below the least σ_z: refused, not run
+    let tiny = KalmanParams {
+        sigma_z_deg: [1e-200, 0.01],
+        ..KalmanParams::default()
+    };
+    assert!(matches!(
+        PaperKalman::new(tiny),
+        Err(EstimateError::OutOfRange(_))
+    ));
+    let tiny = AdaptiveParams {
+        min_sigma_z_deg: 1e-300,
+        ..AdaptiveParams::default()
+    };
+    assert!(matches!(
+        AdaptiveKalman::new(tiny),
+        Err(EstimateError::OutOfRange(_))
+    ));
+}

@@ -5,6 +5,7 @@ use kflex_model::Bounds;
 use nalgebra::{Matrix3, RowVector3, Vector3};
 use serde::{Deserialize, Serialize};
 
+use super::paper::MIN_SIGMA_Z_DEG;
 use super::{Estimate, Fusion, Measurements, SensorUse, check_inputs};
 use crate::error::Result;
 
@@ -68,16 +69,16 @@ impl AdaptiveParams {
     /// [`crate::EstimateError::OutOfRange`] naming the first field outside
     /// its range: `accel_psd_deg2_per_s3` in `(0, 1e9]`, `bias_sigma_deg` in
     /// `[0, 1e3]`, `bias_time_s` in `(0, 1e6]`, `initial_sigma_z_deg` in
-    /// `(0, 1e3]`, `min_sigma_z_deg` in `(0, 1e3]`, `noise_time_s` in
+    /// `[1e-6, 1e3]`, `min_sigma_z_deg` in `[1e-6, 1e3]`, `noise_time_s` in
     /// `(0, 1e6]`, `gate` in `(0, 1e6]`, `max_ibjae_sigma_deg` in `(0, 1e9]`.
     pub fn validate(&self) -> Result<()> {
         Bounds::open_closed(0.0, 1e9).check("accel_psd_deg2_per_s3", self.accel_psd_deg2_per_s3)?;
         Bounds::closed(0.0, 1e3).check("bias_sigma_deg", self.bias_sigma_deg)?;
         Bounds::open_closed(0.0, 1e6).check("bias_time_s", self.bias_time_s)?;
         for s in self.initial_sigma_z_deg {
-            Bounds::open_closed(0.0, 1e3).check("initial_sigma_z_deg", s)?;
+            Bounds::closed(MIN_SIGMA_Z_DEG, 1e3).check("initial_sigma_z_deg", s)?;
         }
-        Bounds::open_closed(0.0, 1e3).check("min_sigma_z_deg", self.min_sigma_z_deg)?;
+        Bounds::closed(MIN_SIGMA_Z_DEG, 1e3).check("min_sigma_z_deg", self.min_sigma_z_deg)?;
         Bounds::open_closed(0.0, 1e6).check("noise_time_s", self.noise_time_s)?;
         Bounds::open_closed(0.0, 1e6).check("gate", self.gate)?;
         Bounds::open_closed(0.0, 1e9).check("max_ibjae_sigma_deg", self.max_ibjae_sigma_deg)?;

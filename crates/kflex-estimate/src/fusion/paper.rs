@@ -28,6 +28,10 @@ pub enum FilterRate {
     AsWritten,
 }
 
+/// The least measurement noise a filter takes, deg: far below any sensor's,
+/// and far above where its square (from about 1e-154 deg) underflows.
+pub(crate) const MIN_SIGMA_Z_DEG: f64 = 1e-6;
+
 /// Parameters of [`PaperKalman`]. Defaults are the paper's.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -61,12 +65,13 @@ impl KalmanParams {
     /// # Errors
     /// [`crate::EstimateError::OutOfRange`] naming `model_dt_s` outside
     /// `(0, 3600]` s, `sigma_a` outside `[0, 1e6]`, or `sigma_z_deg` outside
-    /// `(0, 1e6]` deg.
+    /// `[1e-6, 1e6]` deg (a smaller `σ_z` squares to zero in `f64`, and the
+    /// filter would divide zero by zero).
     pub fn validate(&self) -> Result<()> {
         Bounds::open_closed(0.0, 3600.0).check("model_dt_s", self.model_dt_s)?;
         Bounds::closed(0.0, 1e6).check("sigma_a", self.sigma_a)?;
         for s in self.sigma_z_deg {
-            Bounds::open_closed(0.0, 1e6).check("sigma_z_deg", s)?;
+            Bounds::closed(MIN_SIGMA_Z_DEG, 1e6).check("sigma_z_deg", s)?;
         }
         Ok(())
     }
