@@ -60,6 +60,36 @@ pub enum ControlError {
         /// The name both would have.
         stem: String,
     },
+    /// A grid's base seed so large that a repeat's (`seed + r`) would wrap
+    /// past the largest 64-bit seed to 0.
+    #[error(
+        "seed = {seed} with {repeats} repeats: repeat r runs on seed + r, which would \
+         pass {max_seed}, the largest seed; give a seed of at most {largest_base}",
+        max_seed = u64::MAX
+    )]
+    SeedOverflow {
+        /// The base seed given.
+        seed: u64,
+        /// The repeats.
+        repeats: u32,
+        /// The largest base seed those repeats allow.
+        largest_base: u64,
+    },
+    /// An estimator that gave no estimate on any evaluated tick of an
+    /// estimation run, so that its error cannot be measured.
+    #[error(
+        "{estimator} gave no estimate in case {case} (seed {seed}): no camera frame reached \
+         it, or none showed the instrument (see the scenario's camera.drop_probability \
+         and camera.latency_s)"
+    )]
+    NoEstimate {
+        /// The estimator's name.
+        estimator: &'static str,
+        /// The case, as its files are named.
+        case: String,
+        /// The repeat's seed.
+        seed: u64,
+    },
     /// A metric needs data it was not given.
     #[error("{metric} needs {needed}, got {got}")]
     NotEnoughData {

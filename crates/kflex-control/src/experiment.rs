@@ -253,6 +253,20 @@ pub struct GridRow {
     pub seeds: Vec<u64>,
 }
 
+/// [`ControlError::SeedOverflow`] where repeat `r` of `repeats`, run on
+/// `seed + r`, would wrap past the largest seed to 0.
+pub(crate) fn check_seed(seed: u64, repeats: u32) -> Result<()> {
+    let largest_base = u64::MAX - u64::from(repeats.saturating_sub(1));
+    if seed > largest_base {
+        return Err(ControlError::SeedOverflow {
+            seed,
+            repeats,
+            largest_base,
+        });
+    }
+    Ok(())
+}
+
 impl OpenLoopGrid {
     /// Runs every configuration and repeat. Deterministic in `seed`.
     ///
@@ -260,7 +274,9 @@ impl OpenLoopGrid {
     /// Stops at the first failure:
     /// * [`ControlError::OutOfRange`] naming `repeats` when it is outside
     ///   `[1, 1000]` or `spread` outside `[0, 0.5]` (NaN included);
-    ///   [`ControlError::NotEnoughData`] for no `sheaths_deg`;
+    ///   [`ControlError::SeedOverflow`] for a `seed` whose repeats would
+    ///   pass the largest seed; [`ControlError::NotEnoughData`] for no
+    ///   `sheaths_deg`;
     /// * [`ControlError::Model`] naming the first parameter of the nominal
     ///   plant out of its range ([`PlantConfig::perturbed`]), or of a run's plant
     ///   out of its range ([`Plant::new`]), e.g. a sheath angle outside
@@ -292,6 +308,7 @@ impl OpenLoopGrid {
     /// ```
     pub fn run(&self) -> Result<Vec<GridRow>> {
         Bounds::closed(1.0, f64::from(MAX_REPEATS)).check("repeats", f64::from(self.repeats))?;
+        check_seed(self.seed, self.repeats)?;
         Bounds::closed(0.0, 0.5).check("spread", self.spread)?;
         if self.sheaths_deg.is_empty() {
             return Err(ControlError::NotEnoughData {

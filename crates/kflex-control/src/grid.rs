@@ -19,7 +19,7 @@ use crate::closed_loop::{
     AngleEstimator, ClosedLoopScenario, ClosedLoopTrace, TickDetails, estimation_rmse_deg,
 };
 use crate::error::{ControlError, Result};
-use crate::experiment::{MAX_REPEATS, RunMetrics};
+use crate::experiment::{MAX_REPEATS, RunMetrics, check_seed};
 use crate::metrics::MeanStd;
 
 /// Tape over the instrument, as the paper names its cases.
@@ -340,9 +340,11 @@ impl ExperimentGrid {
     /// backgrounds, or nothing to run (estimation cases with `none` alone);
     /// [`ControlError::SharedCaseName`] for two cases that differ in their
     /// kind alone, or not at all (their logs and figures would share names);
-    /// as [`ClosedLoopScenario::validate`].
+    /// [`ControlError::SeedOverflow`] for a `seed` whose repeats would pass
+    /// the largest seed; as [`ClosedLoopScenario::validate`].
     pub fn validate(&self) -> Result<()> {
         Bounds::closed(1.0, f64::from(MAX_REPEATS)).check("repeats", f64::from(self.repeats))?;
+        check_seed(self.seed, self.repeats)?;
         Bounds::closed(0.0, 0.5).check("spread", self.spread)?;
         for (what, n) in [
             ("at least one case", self.cases.len()),
@@ -470,8 +472,17 @@ impl ExperimentGrid {
             }
             match case.kind {
                 CaseKind::Estimation => {
-                    for (out, estimate) in rmse.iter_mut().zip(&estimates) {
-                        out.push(estimation_rmse_deg(&trace.trace.theta_a_deg, estimate)?);
+                    for ((out, estimate), &kind) in rmse.iter_mut().zip(&estimates).zip(estimators)
+                    {
+                        let r = estimation_rmse_deg(&trace.trace.theta_a_deg, estimate);
+                        out.push(r.map_err(|e| match e {
+                            ControlError::NotEnoughData { .. } => ControlError::NoEstimate {
+                                estimator: kind.name(),
+                                case: case.file_stem(),
+                                seed,
+                            },
+                            e => e,
+                        })?);
                     }
                 }
                 CaseKind::Compensation => {
@@ -536,7 +547,8 @@ impl ExperimentGrid {
     /// Every setting is checked first ([`ExperimentGrid::validate`]); then a
     /// failure stops the grid (runs already started finish), and the first
     /// failure in the grid's order is returned: `make`'s error, a run's
-    /// ([`ClosedLoopScenario::run`]) or its metrics'.
+    /// ([`ClosedLoopScenario::run`]) or its metrics' (an estimation run's
+    /// estimator without a single estimate is [`ControlError::NoEstimate`]).
     pub fn run(
         &self,
         jobs: usize,

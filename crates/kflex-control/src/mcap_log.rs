@@ -263,6 +263,22 @@ fn log_error(path: &Path, e: impl std::fmt::Display) -> ControlError {
     }
 }
 
+/// `e` and the errors beneath it, "outer: inner: …": the MCAP writer's
+/// "I/O error from writing" says why only in its source ("No space left on
+/// device").
+fn with_causes<E: std::error::Error + ?Sized>(e: &E) -> String {
+    let mut message = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        let text = c.to_string();
+        if !message.ends_with(&text) {
+            message = format!("{message}: {text}");
+        }
+        cause = c.source();
+    }
+    message
+}
+
 impl ClosedLoopTrace {
     /// The joint states of every evaluated tick, in order.
     pub fn joint_states(&self) -> impl Iterator<Item = JointState> + '_ {
@@ -355,7 +371,13 @@ impl ClosedLoopTrace {
             .file_name()
             .map_or_else(|| "log.mcap".into(), |n| n.to_string_lossy().into_owned());
         let tmp = path.with_file_name(format!(".{name}.{}-{call}.tmp", std::process::id()));
-        let written = self.write_mcap_to(&tmp, scenario, seed, estimate, details);
+        // a failure names the log, not its hidden copy
+        let written = self
+            .write_mcap_to(&tmp, scenario, seed, estimate, details)
+            .map_err(|e| match e {
+                ControlError::Log { message, .. } => log_error(path, message),
+                e => e,
+            });
         match written.and_then(|()| std::fs::rename(&tmp, path).map_err(|e| log_error(path, e))) {
             Ok(()) => Ok(()),
             Err(e) => {
@@ -373,26 +395,26 @@ impl ClosedLoopTrace {
         estimate: &[Option<f64>],
         details: &[TickDetails],
     ) -> Result<()> {
-        let err = |e: &dyn std::fmt::Display| log_error(path, e);
-        let file = std::fs::File::create(path).map_err(|e| err(&e))?;
+        let err = |message: String| log_error(path, message);
+        let file = std::fs::File::create(path).map_err(|e| err(with_causes(&e)))?;
         let mut out = mcap::Writer::with_options(
             BufWriter::new(file),
             mcap::WriteOptions::new()
                 .compression(None)
                 .library(concat!("kflex-control ", env!("CARGO_PKG_VERSION"))),
         )
-        .map_err(|e| err(&e))?;
+        .map_err(|e| err(with_causes(&e)))?;
         let schema = out
             .add_schema(
                 JOINT_STATE_SCHEMA_NAME,
                 "jsonschema",
                 JOINT_STATE_SCHEMA.as_bytes(),
             )
-            .map_err(|e| err(&e))?;
+            .map_err(|e| err(with_causes(&e)))?;
         let channel = out
             .add_channel(schema, JOINT_STATES_TOPIC, "json", &BTreeMap::new())
-            .map_err(|e| err(&e))?;
-        let scenario_json = serde_json::to_string(scenario).map_err(|e| err(&e))?;
+            .map_err(|e| err(with_causes(&e)))?;
+        let scenario_json = serde_json::to_string(scenario).map_err(|e| err(with_causes(&e)))?;
         out.write_metadata(&mcap::records::Metadata {
             name: "kflex.run".into(),
             metadata: BTreeMap::from([
@@ -400,14 +422,14 @@ impl ClosedLoopTrace {
                 ("seed".to_string(), seed.to_string()),
             ]),
         })
-        .map_err(|e| err(&e))?;
+        .map_err(|e| err(with_causes(&e)))?;
         // to the nearest nanosecond (2.01 s is 2,010,000,000 ns)
         let nanos = |time_s: f64| {
             let ns = (time_s * 1e9).round();
             if (0.0..1.8e19).contains(&ns) {
                 Ok(ns as u64)
             } else {
-                Err(err(&format!("time {time_s} s does not fit the log")))
+                Err(err(format!("time {time_s} s does not fit the log")))
             }
         };
         let frames = if self.camera_frames.is_empty() {
@@ -419,17 +441,17 @@ impl ClosedLoopTrace {
                     "jsonschema",
                     RAW_IMAGE_SCHEMA.as_bytes(),
                 )
-                .map_err(|e| err(&e))?;
+                .map_err(|e| err(with_causes(&e)))?;
             let info = out
                 .add_schema(
                     CAMERA_FRAME_SCHEMA_NAME,
                     "jsonschema",
                     CAMERA_FRAME_SCHEMA.as_bytes(),
                 )
-                .map_err(|e| err(&e))?;
+                .map_err(|e| err(with_causes(&e)))?;
             let mut channel = |schema, topic| {
                 out.add_channel(schema, topic, "json", &BTreeMap::new())
-                    .map_err(|e| err(&e))
+                    .map_err(|e| err(with_causes(&e)))
             };
             Some((
                 channel(image, IMAGE_TOPIC)?,
@@ -439,7 +461,7 @@ impl ClosedLoopTrace {
         };
         let mut segmenter =
             kflex_estimate::Segmenter::new(kflex_estimate::SegmentParams::default())
-                .map_err(|e| err(&e))?;
+                .map_err(|e| err(with_causes(&e)))?;
         let mut data = Vec::new();
         let mut next_frame = 0;
         for (k, state) in self.joint_states_with(estimate, details).enumerate() {
@@ -456,11 +478,11 @@ impl ClosedLoopTrace {
                     nanos(f.captured_s)?,
                     &mut segmenter,
                 )
-                .map_err(|e| err(&e))?;
+                .map_err(|e| err(with_causes(&*e)))?;
                 next_frame += 1;
             }
             data.clear();
-            serde_json::to_writer(&mut data, &state).map_err(|e| err(&e))?;
+            serde_json::to_writer(&mut data, &state).map_err(|e| err(with_causes(&e)))?;
             let header = mcap::records::MessageHeader {
                 channel_id: channel,
                 sequence: u32::try_from(k).unwrap_or(u32::MAX),
@@ -468,7 +490,7 @@ impl ClosedLoopTrace {
                 publish_time: ns,
             };
             out.write_to_known_channel(&header, &data)
-                .map_err(|e| err(&e))?;
+                .map_err(|e| err(with_causes(&e)))?;
         }
         if let Some(channels) = frames {
             for (i, f) in self.camera_frames.iter().enumerate().skip(next_frame) {
@@ -480,12 +502,15 @@ impl ClosedLoopTrace {
                     nanos(f.captured_s)?,
                     &mut segmenter,
                 )
-                .map_err(|e| err(&e))?;
+                .map_err(|e| err(with_causes(&*e)))?;
             }
         }
-        out.finish().map_err(|e| err(&e))?;
-        let file = out.into_inner().into_inner().map_err(|e| err(&e.error()))?;
-        file.sync_all().map_err(|e| err(&e))
+        out.finish().map_err(|e| err(with_causes(&e)))?;
+        let file = out
+            .into_inner()
+            .into_inner()
+            .map_err(|e| err(with_causes(e.error())))?;
+        file.sync_all().map_err(|e| err(with_causes(&e)))
     }
 }
 
@@ -834,6 +859,21 @@ fn write_frame<W: std::io::Write + std::io::Seek>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_write_error_says_why_beneath_the_writers_words() {
+        let full = std::io::Error::other("No space left on device (os error 28)");
+        let e = mcap::McapError::Io(full);
+        let message = with_causes(&e);
+        assert!(message.starts_with(&e.to_string()), "{message}");
+        assert!(
+            message.ends_with("No space left on device (os error 28)"),
+            "{message}"
+        );
+        // an error that already says its cause says it once
+        let plain = std::io::Error::other("denied");
+        assert_eq!(with_causes(&plain), "denied");
+    }
 
     #[test]
     fn base64_round_trips_and_matches_the_rfc_examples() {

@@ -592,3 +592,49 @@ fn cases_that_would_share_file_names_are_refused_before_any_run() {
         scenario_file(name).validate().unwrap();
     }
 }
+
+#[test]
+fn a_seed_whose_repeats_would_wrap_past_the_largest_is_refused() {
+    let grid = |seed: u64, repeats: u32| ExperimentGrid {
+        seed,
+        repeats,
+        ..small()
+    };
+    // three repeats run on seed, seed + 1, seed + 2: the largest base is 2⁶⁴ − 3
+    assert!(grid(u64::MAX - 2, 3).validate().is_ok());
+    assert!(grid(u64::MAX, 1).validate().is_ok());
+    let err = grid(u64::MAX - 1, 3).validate().unwrap_err();
+    assert!(
+        matches!(
+            err,
+            ControlError::SeedOverflow {
+                seed,
+                repeats: 3,
+                largest_base
+            } if seed == u64::MAX - 1 && largest_base == u64::MAX - 2
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().contains("18446744073709551613"), "{err}");
+}
+
+#[test]
+fn an_estimator_that_no_frame_reaches_is_named_not_a_bare_metric() {
+    // every frame lost: the camera's stand-in never gives an estimate
+    let mut grid = ExperimentGrid {
+        cases: vec![small().cases[0].clone()],
+        estimators: vec![EstimatorKind::Ibjae],
+        repeats: 1,
+        ..small()
+    };
+    grid.scenario.camera.drop_probability = 1.0;
+    let make = |_: EstimatorKind| -> kflex_control::Result<Box<dyn AngleEstimator>> {
+        Ok(Box::new(NoisyTruth::new(1.0, 9)?))
+    };
+    let err = grid.run(1, &make, &|_, _| {}).unwrap_err();
+    assert!(
+        matches!(&err, ControlError::NoEstimate { estimator: "ibjae", case, seed: 2020 } if case == "V_0deg_40pct-distal"),
+        "{err}"
+    );
+    assert!(err.to_string().contains("drop_probability"), "{err}");
+}

@@ -130,6 +130,10 @@ pub struct KinematicDataset {
     pub card: DatasetCard<KinematicDatasetConfig>,
 }
 
+/// The most plant ticks a set runs, warm-up included (some three minutes
+/// of one core at 3.3 µs a tick).
+const MAX_TICKS_PER_SET: f64 = 5e7;
+
 impl KinematicDatasetConfig {
     /// Checks the settings.
     ///
@@ -138,7 +142,8 @@ impl KinematicDatasetConfig {
     /// range: `sets.len()` outside `[1, 1000]`, a set's `amplitude_deg`
     /// outside `[0, 170]` or `frequency_hz` outside `(0, 100]`,
     /// `samples_per_set` outside `[1, 1e7]` or more than 5e7 samples in all,
-    /// `dt_s` outside `(0, 10]`,
+    /// `dt_s` outside `(0, 10]`, more than 5e7 plant ticks in a set (its
+    /// warm-up included),
     /// `warmup_cycles` above 1000, `spread` outside `[0, 0.5]`;
     /// [`ControlError::Model`] for the nominal plant's parameters.
     pub fn validate(&self) -> Result<()> {
@@ -155,6 +160,15 @@ impl KinematicDatasetConfig {
         )?;
         Bounds::open_closed(0.0, 10.0).check("dt_s", self.dt_s)?;
         Bounds::closed(0.0, 1000.0).check("warmup_cycles", f64::from(self.warmup_cycles))?;
+        // the plant's ticks a set takes, warm-up included: a tiny `dt_s`
+        // would otherwise run for ever (or overflow the count)
+        for s in &self.sets {
+            let warmup = f64::from(self.warmup_cycles) / s.frequency_hz / self.dt_s;
+            Bounds::closed(1.0, MAX_TICKS_PER_SET).check(
+                "ticks a set (warmup_cycles / frequency_hz / dt_s + samples_per_set)",
+                warmup.round() + self.samples_per_set as f64,
+            )?;
+        }
         Bounds::closed(0.0, 0.5).check("spread", self.spread)?;
         self.plant.perturbed(self.seed, self.spread)?;
         Ok(())
@@ -406,6 +420,20 @@ mod tests {
         assert_eq!(
             bad.validate().unwrap_err().range().unwrap().name,
             "sets.len()"
+        );
+        // a tick so short that the warm-up alone would take 10²⁰ ticks: it
+        // once overflowed the count and made sets of no samples
+        let bad = KinematicDatasetConfig {
+            dt_s: 1e-20,
+            ..small()
+        };
+        assert!(
+            bad.generate(1)
+                .unwrap_err()
+                .range()
+                .unwrap()
+                .name
+                .starts_with("ticks a set")
         );
         // a peak the joint cannot reach
         let mut bad = small();
