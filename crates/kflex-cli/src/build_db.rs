@@ -59,7 +59,7 @@ pub fn build_db(args: &BuildDbArgs) -> Result<()> {
     })?;
     save_databases(&args.out, &bands).with_context(|| format!("writing {}", args.out.display()))?;
     let entries: usize = bands.iter().map(|b| b.index.len()).sum();
-    println!(
+    outln!(
         "wrote {} databases ({} entries, {}° × {} mm grid, SCNN {}) to {} in {:.1} s",
         bands.len(),
         entries,

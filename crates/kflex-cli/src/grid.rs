@@ -181,7 +181,7 @@ pub fn run(
     let total_cases = grid.cases.len();
     // one thread a job at most, as the grid runs them
     let jobs = jobs.min(grid.job_count().max(1));
-    println!(
+    outln!(
         "kflex run — scenario {}{} ({total_cases} case{}, estimators {}, {} repeat{}, seeds {}.., {} period{} of the input, {jobs} thread{})",
         path.display(),
         if quick { ", quick" } else { "" },
@@ -203,7 +203,7 @@ pub fn run(
         if jobs == 1 { "" } else { "s" },
     );
     for note in &notes {
-        println!("note: {note} from {}", path.display());
+        outln!("note: {note} from {}", path.display());
     }
     // a bar on a terminal, nothing where stderr is a file or a pipe
     let bar = indicatif::ProgressBar::new(0);
@@ -262,7 +262,7 @@ pub fn run(
         return Err(kflex_control::ControlError::Interrupted.into());
     }
     if let Some(dir) = &logs {
-        println!("wrote the runs' MCAP logs to {}", dir.display());
+        outln!("wrote the runs' MCAP logs to {}", dir.display());
     }
     let rows = records
         .iter()
@@ -287,8 +287,8 @@ pub fn run(
                 ("results.csv", csv(&rows).as_bytes()),
             ],
         )?;
-        println!("\nwrote {}", paths[0].display());
-        println!("wrote {}", paths[1].display());
+        outln!("\nwrote {}", paths[0].display());
+        outln!("wrote {}", paths[1].display());
         if let Some(figures) = figures {
             // the results are written; a figure that fails still fails the
             // command (non-zero exit), saying what is there and what is not
@@ -301,7 +301,7 @@ pub fn run(
                     plots.display()
                 )
             })?;
-            println!(
+            outln!(
                 "wrote {} figures (PNG and SVG) to {}",
                 written.len() / 2,
                 plots.display()
@@ -388,7 +388,7 @@ fn print_tables(rows: &[Row]) {
     for table in tables {
         let these: Vec<&Row> = rows.iter().filter(|r| r.table == table).collect();
         let compensation = these.iter().any(|r| r.kind == "compensation");
-        println!(
+        outln!(
             "\nTable {table} — {}",
             if compensation {
                 "closed loop: RMSE of the measured angle against θ_d, and the maximum hysteresis (loop width)"
@@ -396,16 +396,20 @@ fn print_tables(rows: &[Row]) {
                 "estimation: RMSE of each estimate against the true angle"
             }
         );
-        print!(
+        out!(
             "{:>7} {:>11} {:>16} | {:>15} {:>15}",
-            "sheath", "occlusion", "estimator", "RMSE kflex", "RMSE paper"
+            "sheath",
+            "occlusion",
+            "estimator",
+            "RMSE kflex",
+            "RMSE paper"
         );
         if compensation {
-            print!(" | {:>15} {:>15}", "width kflex", "width paper");
+            out!(" | {:>15} {:>15}", "width kflex", "width paper");
         }
-        println!();
+        outln!();
         for r in these {
-            print!(
+            out!(
                 "{:>7} {:>11} {:>16} | {:>15} {:>15}",
                 r.sheath_deg,
                 r.occlusion,
@@ -418,12 +422,12 @@ fn print_tables(rows: &[Row]) {
                     (Some(m), Some(s)) => pm(m, s),
                     _ => format!("{:>13}", "—"),
                 };
-                print!(
+                out!(
                     " | {kflex:>15} {:>15}",
                     paper_pm(r.paper_max_hysteresis_deg, r.paper_max_hysteresis_std_deg)
                 );
             }
-            println!();
+            outln!();
         }
     }
 }

@@ -1,6 +1,25 @@
 //! `kflex-cli`: reproduce and extend the seed paper's experiments on the kflex testbed.
 #![warn(missing_docs)]
 
+/// `println!` that a closed standard output does not stop: with `kflex-cli
+/// run | head` the tables go to a reader that has left, and the command
+/// carries on (its results still go to their files) instead of panicking.
+/// The text past the closing is dropped.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
+/// `print!` as [`outln!`] (no line end).
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stdout(), $($arg)*);
+    }};
+}
+
 mod build_db;
 mod config;
 mod figures;
@@ -45,6 +64,23 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Run(mut args) => {
             if let Some(run_matches) = matches.subcommand_matches("run") {
+                let stray = run::RunArgs::scenario_only_without_scenario(run_matches);
+                if !stray.is_empty() {
+                    let mut cli = Cli::command();
+                    let message = format!(
+                        "without --scenario FILE (the plant-alone Table IX run) these \
+                         flags would do nothing: {}",
+                        stray.join(", ")
+                    );
+                    let kind = clap::error::ErrorKind::MissingRequiredArgument;
+                    match cli.find_subcommand_mut("run") {
+                        Some(run) => {
+                            run.set_bin_name("kflex-cli run");
+                            run.error(kind, message).exit()
+                        }
+                        None => cli.error(kind, message).exit(),
+                    }
+                }
                 args.note_given(run_matches);
             }
             run::run(&args)

@@ -93,7 +93,7 @@ pub fn render(args: &RenderArgs) -> Result<()> {
         .roi;
     if !covered.contains(args.theta, args.d) {
         let ([lo, hi], [d_lo, d_hi]) = (covered.theta_deg, covered.translation_mm);
-        println!(
+        outln!(
             "note: the working regions of interest cover θ in [{lo}, {hi}] deg at d in [{d_lo}, {d_hi}] mm; \
              outside them the region may cut off part of the joint or gripper"
         );
@@ -156,9 +156,12 @@ pub fn render(args: &RenderArgs) -> Result<()> {
             return Err(e);
         }
     };
-    println!(
+    outln!(
         "region of interest: {}×{} px at ({}, {})",
-        roi.width, roi.height, roi.x0, roi.y0
+        roi.width,
+        roi.height,
+        roi.x0,
+        roi.y0
     );
     // the segmentation's two files as one set too
     write_atomic_set(
@@ -174,8 +177,8 @@ pub fn render(args: &RenderArgs) -> Result<()> {
             ),
         ],
     )?;
-    println!("segmentation: IoU {iou:.3} with the visible instrument in the region of interest");
-    println!(
+    outln!("segmentation: IoU {iou:.3} with the visible instrument in the region of interest");
+    outln!(
         "wrote frame.png, silhouette_48.png, instrument_mask.png, occluder_mask.png and the segmentation to {}",
         args.out.display()
     );

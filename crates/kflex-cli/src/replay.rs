@@ -108,7 +108,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
     let models = ModelDir::new(&args.models);
     let camera = Camera::default();
     crate::grid::check_models(&models, &kinds, &camera, "")?;
-    println!(
+    outln!(
         "kflex replay — {} ({} ticks of {} s, {} frames{}{})",
         args.log.display(),
         log.states.len(),
@@ -122,14 +122,20 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         },
     );
     if log.frames.is_empty() {
-        println!(
+        outln!(
             "note: the log holds no camera frames (record them with `run --mcap --mcap-frames`): \
              camera-based estimators see none"
         );
     }
-    println!(
+    outln!(
         "\n{:>16} | {:>13} {:>7} | {:>11} {:>6} {:>6} {:>6}",
-        "estimator", "RMSE (deg)", "ticks", "frames read", "hidden", "used", "gated"
+        "estimator",
+        "RMSE (deg)",
+        "ticks",
+        "frames read",
+        "hidden",
+        "used",
+        "gated"
     );
     let logged: Vec<Option<f64>> = log.states.iter().map(|s| s.theta_hat_deg).collect();
     if let Some((r, n)) = scored(&truth, &logged) {
@@ -143,7 +149,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         } else {
             readings(&details, camera, fused)
         };
-        println!("{:>16} | {r:>13.3} {n:>7} | {camera_use}", "as logged");
+        outln!("{:>16} | {r:>13.3} {n:>7} | {camera_use}", "as logged");
     }
     for kind in kinds {
         let mut estimator = models.make(kind, &camera)?;
@@ -153,8 +159,8 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         let (camera, fused) = has_camera_and_filter(kind);
         let camera_use = readings(&details, camera, fused);
         match scored(&truth, &estimate) {
-            Some((r, n)) => println!("{:>16} | {r:>13.3} {n:>7} | {camera_use}", kind.name()),
-            None => println!(
+            Some((r, n)) => outln!("{:>16} | {r:>13.3} {n:>7} | {camera_use}", kind.name()),
+            None => outln!(
                 "{:>16} | {:>13} {:>7} | {camera_use}",
                 kind.name(),
                 "no estimate",

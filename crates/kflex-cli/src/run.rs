@@ -139,6 +139,34 @@ impl RunArgs {
     const OVERRIDING: [&'static str; 6] =
         ["sheath", "joint", "seed", "no_noise", "repeats", "spread"];
 
+    /// The flags that only a scenario's grid reads, as clap names them.
+    const SCENARIO_ONLY: [(&'static str, &'static str); 8] = [
+        ("estimators", "--estimators"),
+        ("jobs", "--jobs"),
+        ("quick", "--quick"),
+        ("occlusion", "--occlusion"),
+        ("models", "--models"),
+        ("mcap", "--mcap"),
+        ("mcap_frames", "--mcap-frames"),
+        ("no_plots", "--no-plots"),
+    ];
+
+    /// The flags given on the command line (`matches`, this subcommand's)
+    /// that only work with `--scenario`, when it is not given. clap's own
+    /// `requires` lets them through when a flag that conflicts with
+    /// `--scenario` (`--periods`, say) is given too, and they would be
+    /// ignored without a word.
+    pub fn scenario_only_without_scenario(matches: &ArgMatches) -> Vec<&'static str> {
+        if matches.value_source("scenario").is_some() {
+            return Vec::new();
+        }
+        Self::SCENARIO_ONLY
+            .into_iter()
+            .filter(|(id, _)| matches.value_source(id) == Some(ValueSource::CommandLine))
+            .map(|(_, flag)| flag)
+            .collect()
+    }
+
     /// Records which of the overriding flags `matches` (this subcommand's) got
     /// from the command line, for the run's notes.
     pub fn note_given(&mut self, matches: &ArgMatches) {
@@ -340,7 +368,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     print_table(args, &notes, &records);
     if let Some(dir) = &args.out {
         let path = write_results(dir, &records)?;
-        println!("\nwrote {}", path.display());
+        outln!("\nwrote {}", path.display());
     }
     Ok(())
 }
@@ -422,7 +450,7 @@ fn print_table(args: &RunArgs, notes: &[String], records: &[Record]) {
     let seeds_last = args
         .seed
         .wrapping_add(u64::from(args.repeats.saturating_sub(1)));
-    println!(
+    outln!(
         "kflex run — estimator {:?}, input 25 sin(t) + 25 deg at 0.159 Hz, {} periods, {} repeats (seeds {}..={}), {:?} joint, {}",
         args.estimator,
         args.periods,
@@ -437,22 +465,28 @@ fn print_table(args: &RunArgs, notes: &[String], records: &[Record]) {
         }
     );
     for note in notes {
-        println!("{note}");
+        outln!("{note}");
     }
-    println!(
+    outln!(
         "Paper: Baek et al., RA-L 2020, Table IX ('None' row). Maximum hysteresis = loop width (see docs).\n"
     );
-    println!(
+    outln!(
         "{:>7} | {:^31} | {:^31}",
-        "sheath", "RMSE (deg)", "max. hysteresis (deg)"
+        "sheath",
+        "RMSE (deg)",
+        "max. hysteresis (deg)"
     );
-    println!(
+    outln!(
         "{:>7} | {:^15} {:^15} | {:^15} {:^15}",
-        "(deg)", "kflex", "paper", "kflex", "paper"
+        "(deg)",
+        "kflex",
+        "paper",
+        "kflex",
+        "paper"
     );
-    println!("{}", "-".repeat(73));
+    outln!("{}", "-".repeat(73));
     for r in records {
-        println!(
+        outln!(
             "{:>7} | {:>15} {:>15} | {:>15} {:>15}",
             r.sheath_deg,
             pm(r.rmse_deg, r.rmse_std_deg),
@@ -461,15 +495,17 @@ fn print_table(args: &RunArgs, notes: &[String], records: &[Record]) {
             paper_pm(r.paper_max_hysteresis_deg, r.paper_max_hysteresis_std_deg),
         );
     }
-    println!(
+    outln!(
         "\nThe other readings of 'maximum hysteresis' (kflex; the paper's figures are the loop width's above):"
     );
-    println!(
+    outln!(
         "{:>7} | {:^15} {:^15}",
-        "sheath", "error p-to-p", "peak loss"
+        "sheath",
+        "error p-to-p",
+        "peak loss"
     );
     for r in records {
-        println!(
+        outln!(
             "{:>7} | {:>15} {:>15}",
             r.sheath_deg,
             pm(r.error_peak_to_peak_deg, r.error_peak_to_peak_std_deg),
