@@ -336,6 +336,38 @@ def test_working_regions_and_camera():
         kflex.Intrinsics.from_fov(640, 480, 200.0)
 
 
+def test_kflex_exceptions_show_their_python_names():
+    assert kflex.RangeError.__name__ == "RangeError"
+    assert kflex.RangeError.__qualname__ == "RangeError"
+    assert kflex.NoInstrumentError.__name__ == "NoInstrumentError"
+    assert issubclass(kflex.RangeError, ValueError)
+    assert issubclass(kflex.NoInstrumentError, RuntimeError)
+
+
+def test_positions_that_are_not_finite_or_beyond_the_lens_raise():
+    camera = kflex.Camera()
+    nan, inf = float("nan"), float("inf")
+    # these once returned NaN, or a ray pointing backwards, without a word
+    for call, name in [
+        (lambda: camera.ray_direction(nan, 0.0), "u"),
+        (lambda: camera.ray_direction(0.0, inf), "v"),
+        (lambda: camera.illumination(nan, 0.0), "u"),
+        (lambda: camera.lens.undistort(nan, 0.0), "xd"),
+        (lambda: camera.lens.distort(0.0, nan), "yu"),
+        (lambda: kflex.WorkingRegions.full(camera).nearest(nan, 10.0), "theta_deg"),
+        (lambda: kflex.Trajectory.paper().sample(np.array([0.0, nan])), "t_s"),
+    ]:
+        with pytest.raises(ValueError, match=name):
+            call()
+    with pytest.raises(ValueError, match="beyond the lens"):
+        camera.ray_direction(-1e6, -1e6)
+    with pytest.raises(ValueError, match="beyond the lens"):
+        camera.lens.undistort(1e3, 0.0)
+    # inside the image the ray still points forward, bent by the barrel lens
+    x, y, z = camera.ray_direction(0.0, 0.0)
+    assert z == 1.0 and x < 0.0 and y < 0.0
+
+
 # ---- the interpreter lock ----------------------------------------------------
 
 

@@ -142,6 +142,59 @@ def test_models_of_the_wrong_contract_and_damaged_files_are_refused(models: Mode
         kflex.Kbjae.load(truncated)
 
 
+def with_nan_weights(model: Path, out: Path) -> Path:
+    """A copy of `model` whose first weight tensor is all NaN (a damaged file
+    that still loads: the contract and the graph are intact)."""
+    import onnx
+    from onnx import numpy_helper
+
+    proto = onnx.load(str(model))
+    first = proto.graph.initializer[0]
+    bad = np.full(numpy_helper.to_array(first).shape, np.nan, np.float32)
+    first.CopyFrom(numpy_helper.from_array(bad, first.name))
+    onnx.save(proto, str(out))
+    return out
+
+
+def test_a_model_that_answers_nan_is_a_runtime_error_not_a_number(models: Models, tmp_path: Path) -> None:
+    k = kflex.Kbjae.load(with_nan_weights(models / "kbjae_test.onnx", tmp_path / "kbjae_nan.onnx"))
+    for call in (
+        lambda: k.predict(10.0, 1.0),
+        lambda: k.errors(np.array([10.0, 20.0]), np.array([0.0, 1.0])),
+        lambda: k.step(10.0, 0.01),
+    ):
+        with pytest.raises(RuntimeError, match="damaged"):
+            call()
+    scnn = kflex.Scnn.load(with_nan_weights(models / "scnn_test.onnx", tmp_path / "scnn_nan.onnx"))
+    masks, _ = scnn_case(models)
+    with pytest.raises(RuntimeError, match="damaged"):
+        scnn.embed(masks)
+    # one at a time too, and a failed embedding is not remembered for the next call
+    for _ in range(2):
+        with pytest.raises(RuntimeError, match="damaged"):
+            scnn.embed(masks[0])
+
+
+def test_threads_may_share_one_model(models: Models, kbjae_path: Path) -> None:
+    from concurrent.futures import ThreadPoolExecutor
+
+    masks, _ = scnn_case(models)
+    scnn, k = kflex.Scnn.load(models / "scnn_test.onnx"), kflex.Kbjae.load(kbjae_path)
+    theta, rate = np.linspace(0.0, 50.0, 64), np.linspace(-20.0, 20.0, 64)
+    want = (scnn.embed(masks), k.errors(theta, rate), k.predict(12.0, 3.0))
+
+    def work(_: int):
+        return [(scnn.embed(masks), k.errors(theta, rate), k.predict(12.0, 3.0)) for _ in range(20)]
+
+    # the calls take turns (they once raised "Already borrowed")
+    with ThreadPoolExecutor(4) as pool:
+        for results in pool.map(work, range(8)):
+            for embedded, errors, predicted in results:
+                assert np.array_equal(embedded, want[0])
+                assert np.array_equal(errors, want[1])
+                assert predicted == want[2]
+
+
 def test_without_onnx_runtime_loading_raises_a_runtime_error_that_says_what_to_do(kbjae_path: Path) -> None:
     # its own process: the runtime is loaded once per process
     script = (

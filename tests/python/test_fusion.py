@@ -80,6 +80,35 @@ def test_bad_input_raises_and_changes_nothing() -> None:
     assert kflex.KalmanParams().rate == "as_run"
 
 
+@pytest.mark.parametrize("make", [kflex.PaperKalman, kflex.AdaptiveKalman])
+def test_a_rejected_run_changes_nothing(make) -> None:
+    kf = make()
+    kf.run(0.01, np.full(50, 10.0), np.full(50, 11.0))
+    before = kf.estimate()
+    # the bad tick comes last: the good ones before it must not stay applied
+    with pytest.raises(ValueError, match="kbjae_deg"):
+        kf.run(0.01, np.array([20.0, 20.0, np.inf]))
+    after = kf.estimate()
+    assert after.theta_hat_deg == before.theta_hat_deg
+    np.testing.assert_array_equal(after.covariance, before.covariance)
+    # and the filter goes on from there as if the bad run never came
+    fresh = make()
+    fresh.run(0.01, np.full(50, 10.0), np.full(50, 11.0))
+    assert kf.step(0.01, 12.0).theta_hat_deg == fresh.step(0.01, 12.0).theta_hat_deg
+
+
+def test_a_measurement_noise_too_small_to_square_is_refused() -> None:
+    # 1e-200 squares to zero in f64: the filter would divide zero by zero
+    with pytest.raises(kflex.RangeError) as e:
+        kflex.PaperKalman(kflex.KalmanParams(sigma_z_deg=[1e-200, 0.01]))
+    assert e.value.name == "sigma_z_deg"
+    with pytest.raises(kflex.RangeError):
+        kflex.AdaptiveKalman(kflex.AdaptiveParams(min_sigma_z_deg=1e-300))
+    kf = kflex.PaperKalman(kflex.KalmanParams(sigma_z_deg=[1e-6, 1e-6]))
+    e = kf.step(0.01, kbjae_deg=10.0, ibjae_deg=10.5, ibjae_sigma_deg=0.5)
+    assert math.isfinite(e.theta_hat_deg) and np.isfinite(e.covariance).all()
+
+
 def test_the_adaptive_filter_rejects_a_reading_with_a_hidden_part() -> None:
     flagged, plain = kflex.AdaptiveKalman(), kflex.AdaptiveKalman()
     for _ in range(50):

@@ -6,7 +6,31 @@ use kflex_model::{
 };
 use pyo3::prelude::*;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
+
+/// `ValueError` naming the first of `values` that is not finite.
+pub(crate) fn finite(names: [&'static str; 2], values: [f64; 2]) -> Result<()> {
+    for (name, value) in names.into_iter().zip(values) {
+        if !value.is_finite() {
+            return Err(kflex_model::ModelError::NonFinite { name, value }.into());
+        }
+    }
+    Ok(())
+}
+
+/// `ValueError` where normalised distorted coordinates `(xd, yd)` lie beyond
+/// the division model's reach: `1 + λ r² ≤ 0` bends the ray backwards.
+fn within_lens(lens: &kflex_model::Lens, xd: f64, yd: f64) -> Result<()> {
+    let q = 1.0 + lens.division * (xd * xd + yd * yd);
+    if q > 0.0 {
+        return Ok(());
+    }
+    Err(Error::Py(pyo3::exceptions::PyValueError::new_err(format!(
+        "normalised position ({xd:e}, {yd:e}) lies beyond the lens's reach: 1 + λ r² = \
+         {q:e} with λ = {} (only 1 + λ r² > 0 bends the ray forward)",
+        lens.division
+    ))))
+}
 use crate::plant::{PyJointParams, PyTranslationParams};
 use crate::value::serde_class;
 
@@ -63,13 +87,20 @@ serde_class!(
         }
 
         /// Distorted normalised coordinates `[xd, yd]` of undistorted `(xu, yu)`.
-        fn distort(&self, xu: f64, yu: f64) -> [f64; 2] {
-            self.inner.distort(xu, yu)
+        /// Raises `ValueError` for a coordinate that is not finite.
+        fn distort(&self, xu: f64, yu: f64) -> Result<[f64; 2]> {
+            finite(["xu", "yu"], [xu, yu])?;
+            Ok(self.inner.distort(xu, yu))
         }
 
         /// Undistorted normalised coordinates `[xu, yu]` of distorted `(xd, yd)`.
-        fn undistort(&self, xd: f64, yd: f64) -> [f64; 2] {
-            self.inner.undistort(xd, yd)
+        /// Raises `ValueError` for a coordinate that is not finite, or one
+        /// beyond the division model's reach (`1 + λ r² ≤ 0`, where the
+        /// formula would turn the ray around).
+        fn undistort(&self, xd: f64, yd: f64) -> Result<[f64; 2]> {
+            finite(["xd", "yd"], [xd, yd])?;
+            within_lens(&self.inner, xd, yd)?;
+            Ok(self.inner.undistort(xd, yd))
         }
     }
 );
@@ -279,13 +310,21 @@ impl PyCamera {
     }
 
     /// The ray through pixel position `(u, v)` in the camera frame (`z = 1`).
-    fn ray_direction(&self, u: f64, v: f64) -> [f64; 3] {
-        self.inner.ray_direction(u, v)
+    /// Raises `ValueError` for a position that is not finite, or one so
+    /// far outside the image that the lens model cannot bend it (`1 + λ r²
+    /// ≤ 0`).
+    fn ray_direction(&self, u: f64, v: f64) -> Result<[f64; 3]> {
+        finite(["u", "v"], [u, v])?;
+        let k = &self.inner.intrinsics;
+        within_lens(&self.inner.lens, (u - k.cx) / k.fx, (v - k.cy) / k.fy)?;
+        Ok(self.inner.ray_direction(u, v))
     }
 
-    /// The lens's relative illumination at pixel position `(u, v)`.
-    fn illumination(&self, u: f64, v: f64) -> f64 {
-        self.inner.illumination(u, v)
+    /// The lens's relative illumination at pixel position `(u, v)`. Raises
+    /// `ValueError` for a position that is not finite.
+    fn illumination(&self, u: f64, v: f64) -> Result<f64> {
+        finite(["u", "v"], [u, v])?;
+        Ok(self.inner.illumination(u, v))
     }
 
     /// The same camera with other intrinsics (e.g. a region's).
@@ -444,9 +483,12 @@ impl PyWorkingRegions {
     }
 
     /// The band for the pose clamped into the range (None if there is none).
-    fn nearest(&self, theta_deg: f64, translation_mm: f64) -> Option<PyWorkingBand> {
-        self.inner
+    /// Raises `ValueError` for a value that is not finite (no clamp places it).
+    fn nearest(&self, theta_deg: f64, translation_mm: f64) -> Result<Option<PyWorkingBand>> {
+        finite(["theta_deg", "translation_mm"], [theta_deg, translation_mm])?;
+        Ok(self
+            .inner
             .nearest(theta_deg, translation_mm)
-            .map(|b| (*b).into())
+            .map(|b| (*b).into()))
     }
 }

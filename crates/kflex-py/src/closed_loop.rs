@@ -65,25 +65,38 @@ serde_class!(
         ) -> Result<PyClosedLoopTrace> {
             let scenario = self.inner.clone();
             let plant = &mut plant.inner;
-            // the estimator's borrow lives in one of these for the run
-            let (mut noisy, mut kbjae, mut lbhjae);
-            let estimator: &mut (dyn AngleEstimator + Send) =
-                if let Ok(e) = estimator.extract::<PyRefMut<'_, PyNoisyTruth>>() {
-                    noisy = e;
-                    &mut noisy.inner
-                } else if let Ok(e) = estimator.extract::<PyRefMut<'_, PyKbjae>>() {
-                    kbjae = e;
-                    &mut kbjae.inner
-                } else if let Ok(e) = estimator.extract::<PyRefMut<'_, PyLbhjae>>() {
-                    lbhjae = e;
-                    lbhjae.inner.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner)
-                } else {
-                    return Err(Error::Py(pyo3::exceptions::PyTypeError::new_err(format!(
-                        "estimator must be a NoisyTruth, Kbjae or Lbhjae, not {}",
-                        estimator.get_type().name().map_err(Error::Py)?
-                    ))));
-                };
+            // the estimator's borrow lives in one of these for the run (a
+            // shared KBJAE's lock is taken without the interpreter lock)
+            let (mut noisy, kbjae, mut lbhjae);
+            let chosen = if let Ok(e) = estimator.extract::<PyRefMut<'_, PyNoisyTruth>>() {
+                noisy = e;
+                Chosen::Own(&mut noisy.inner)
+            } else if let Ok(e) = estimator.extract::<PyRef<'_, PyKbjae>>() {
+                kbjae = e;
+                Chosen::Shared(&kbjae.inner)
+            } else if let Ok(e) = estimator.extract::<PyRefMut<'_, PyLbhjae>>() {
+                lbhjae = e;
+                Chosen::Own(
+                    lbhjae
+                        .inner
+                        .get_mut()
+                        .unwrap_or_else(std::sync::PoisonError::into_inner),
+                )
+            } else {
+                return Err(Error::Py(pyo3::exceptions::PyTypeError::new_err(format!(
+                    "estimator must be a NoisyTruth, Kbjae or Lbhjae, not {}",
+                    estimator.get_type().name().map_err(Error::Py)?
+                ))));
+            };
             let trace = py.detach(|| {
+                let mut guard;
+                let estimator: &mut (dyn AngleEstimator + Send) = match chosen {
+                    Chosen::Own(e) => e,
+                    Chosen::Shared(m) => {
+                        guard = m.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+                        &mut *guard
+                    }
+                };
                 let trace = scenario.run(plant, estimator, seed)?;
                 if let Some(path) = &mcap_path {
                     trace.write_mcap(path, &scenario, seed)?;
@@ -94,6 +107,13 @@ serde_class!(
         }
     }
 );
+
+/// The estimator a closed-loop run steps: one the run borrows alone, or a
+/// KBJAE that Python threads share (locked for the run).
+enum Chosen<'a> {
+    Own(&'a mut (dyn AngleEstimator + Send)),
+    Shared(&'a std::sync::Mutex<kflex_estimate::Kbjae>),
+}
 
 /// A recorded closed-loop run (kflex-control's `ClosedLoopTrace`): one row
 /// per evaluated tick, each column a float64 array.

@@ -26,19 +26,27 @@ use pyo3::exceptions::{
 use pyo3::prelude::*;
 use std::io::ErrorKind;
 
-pyo3::create_exception!(
-    kflex,
-    PyRangeError,
-    PyValueError,
-    "A value outside its valid range. Attributes: `name` (the quantity, unit in the name), `value`, `min`, `max`, `min_inclusive`, `max_inclusive` (the bounds; the ends may be infinite)."
-);
+/// The exceptions kflex defines, under the names Python shows
+/// (`kflex.RangeError`, not the Rust-side `PyRangeError`).
+mod exceptions {
+    use pyo3::exceptions::{PyRuntimeError, PyValueError};
 
-pyo3::create_exception!(
-    kflex,
-    PyNoInstrumentError,
-    PyRuntimeError,
-    "The segmentation found no instrument in the region of interest (`Segmenter.segment` returns None instead of raising it)."
-);
+    pyo3::create_exception!(
+        kflex,
+        RangeError,
+        PyValueError,
+        "A value outside its valid range. Attributes: `name` (the quantity, unit in the name), `value`, `min`, `max`, `min_inclusive`, `max_inclusive` (the bounds; the ends may be infinite)."
+    );
+
+    pyo3::create_exception!(
+        kflex,
+        NoInstrumentError,
+        PyRuntimeError,
+        "The segmentation found no instrument in the region of interest (`Segmenter.segment` returns None instead of raising it)."
+    );
+}
+
+pub use exceptions::{NoInstrumentError as PyNoInstrumentError, RangeError as PyRangeError};
 
 /// Every error a wrapper can return; `?` converts the crates' errors into it.
 #[derive(Debug)]
@@ -153,7 +161,9 @@ pub(crate) fn classify(e: &Error) -> Option<Kind> {
         Error::Control(
             ControlError::NotEnoughData { .. }
             | ControlError::NonFiniteSample { .. }
-            | ControlError::SharedCaseName { .. },
+            | ControlError::SharedCaseName { .. }
+            | ControlError::SeedOverflow { .. }
+            | ControlError::NoEstimate { .. },
         ) => Kind::Value,
         // a log file that cannot be written
         Error::Control(ControlError::Log { .. }) => Kind::Os(ErrorKind::Other),

@@ -247,7 +247,8 @@ macro_rules! fusion_class {
             /// `theta_hat_covariance` (n × 2 × 2), `kbjae_use` and
             /// `ibjae_use` (strings as `Estimate` names them), `ibjae_nis`
             /// (NaN where not gated), and the bool shorthands `kbjae_used`,
-            /// `ibjae_used`, `ibjae_gated`.
+            /// `ibjae_used`, `ibjae_gated`. A series with a rejected tick
+            /// raises as `step` would and leaves the filter as it was.
             #[pyo3(signature = (
                 dt_s, kbjae_deg = None, ibjae_deg = None, ibjae_sigma_deg = None,
                 ibjae_occluded = None
@@ -261,15 +262,20 @@ macro_rules! fusion_class {
                 ibjae_sigma_deg: Option<&Bound<'py, PyAny>>,
                 ibjae_occluded: Option<&Bound<'py, PyAny>>,
             ) -> Result<Bound<'py, PyDict>> {
-                run_series(
+                // on a copy, kept only when every tick was accepted: a
+                // rejected series leaves the filter as it was
+                let mut filter = self.inner.clone();
+                let out = run_series(
                     py,
-                    &mut self.inner,
+                    &mut filter,
                     dt_s,
                     kbjae_deg,
                     ibjae_deg,
                     ibjae_sigma_deg,
                     ibjae_occluded,
-                )
+                )?;
+                self.inner = filter;
+                Ok(out)
             }
 
             /// The current estimate, without stepping.

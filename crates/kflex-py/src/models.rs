@@ -5,6 +5,7 @@
 //! install or set.
 
 use std::path::PathBuf;
+use std::sync::{Mutex, MutexGuard, PoisonError};
 
 use kflex_estimate::{EMBEDDING_DIM, Kbjae, SCNN_SIDE, Scnn};
 use numpy::IntoPyArray;
@@ -14,13 +15,21 @@ use pyo3::prelude::*;
 use crate::array;
 use crate::error::Result;
 
+/// Locks `m` (the thread waits without the interpreter lock, so that the
+/// thread holding `m` can finish and hand back its result); a lock whose
+/// holder panicked is taken over, as every call leaves the model whole.
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
 /// KBJAE (kflex-estimate's `Kbjae`): the MLP that predicts the joint's
 /// hysteresis error θ̃ from the command and its rate, so θ = θ_c + θ̃.
 /// `step` keeps the command's history (its rate); `predict` and `errors`
-/// keep none.
-#[pyclass(name = "Kbjae", module = "kflex")]
+/// keep none. Python threads may share one: their calls take turns.
+#[pyclass(name = "Kbjae", module = "kflex", frozen)]
 pub struct PyKbjae {
-    pub(crate) inner: Kbjae,
+    pub(crate) inner: Mutex<Kbjae>,
+    sha256: String,
 }
 
 #[pymethods]
@@ -34,15 +43,17 @@ impl PyKbjae {
     /// or refuses the file.
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf) -> Result<Self> {
+        let kbjae = py.detach(|| Kbjae::load(&path))?;
         Ok(Self {
-            inner: py.detach(|| Kbjae::load(&path))?,
+            sha256: kbjae.sha256().to_owned(),
+            inner: Mutex::new(kbjae),
         })
     }
 
     /// The model file's SHA-256 (lowercase hex).
     #[getter]
     fn sha256(&self) -> &str {
-        self.inner.sha256()
+        &self.sha256
     }
 
     /// One tick: the command `theta_c_deg` sent this tick, `dt_s` after
@@ -53,11 +64,20 @@ impl PyKbjae {
     /// non-finite command or rate, `RangeError` for `dt_s` outside
     /// (0, 3600]; the estimator is then unchanged.
     #[pyo3(signature = (theta_c_deg, dt_s, rate_deg_per_s = None))]
-    fn step(&mut self, theta_c_deg: f64, dt_s: f64, rate_deg_per_s: Option<f64>) -> Result<f64> {
-        Ok(match rate_deg_per_s {
-            Some(rate) => self.inner.step_with_rate(theta_c_deg, rate, dt_s)?,
-            None => self.inner.step(theta_c_deg, dt_s)?,
-        })
+    fn step(
+        &self,
+        py: Python<'_>,
+        theta_c_deg: f64,
+        dt_s: f64,
+        rate_deg_per_s: Option<f64>,
+    ) -> Result<f64> {
+        Ok(py.detach(|| {
+            let mut kbjae = lock(&self.inner);
+            match rate_deg_per_s {
+                Some(rate) => kbjae.step_with_rate(theta_c_deg, rate, dt_s),
+                None => kbjae.step(theta_c_deg, dt_s),
+            }
+        })?)
     }
 
     /// `step` for each command of `theta_c_deg` (a one-dimensional array,
@@ -65,14 +85,14 @@ impl PyKbjae {
     /// (float64). On a refused command the error is raised and the
     /// estimator keeps the ticks before it.
     fn run<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         theta_c_deg: &Bound<'py, PyAny>,
         dt_s: f64,
     ) -> Result<Bound<'py, PyAny>> {
         let theta = array::series("theta_c_deg", theta_c_deg)?;
-        let kbjae = &mut self.inner;
         let angles = py.detach(|| {
+            let mut kbjae = lock(&self.inner);
             theta
                 .iter()
                 .map(|&t| kbjae.step(t, dt_s))
@@ -82,18 +102,20 @@ impl PyKbjae {
     }
 
     /// KBJAE's angle θ + θ̃(θ, θ') for one command and its rate, deg (no
-    /// history kept). Raises `ValueError` for a non-finite input.
-    fn predict(&mut self, theta_deg: f64, rate_deg_per_s: f64) -> Result<f64> {
-        Ok(self.inner.predict(theta_deg, rate_deg_per_s)?)
+    /// history kept). Raises `ValueError` for a non-finite input,
+    /// `RangeError` for one beyond ±1e6 deg or ±1e9 deg/s.
+    fn predict(&self, py: Python<'_>, theta_deg: f64, rate_deg_per_s: f64) -> Result<f64> {
+        Ok(py.detach(|| lock(&self.inner).predict(theta_deg, rate_deg_per_s))?)
     }
 
     /// The predicted errors θ̃ (not the angles) for many commands at once,
     /// in one model call: `theta_deg` and `rate_deg_per_s` one-dimensional
     /// arrays of one length (deg, deg/s; rounded to float32, the model's
     /// type). Returns a float32 array. Raises `TypeError` for arrays of
-    /// other shapes or lengths, `ValueError` for a non-finite input.
+    /// other shapes or lengths, `ValueError` for a non-finite input,
+    /// `RangeError` for one beyond ±1e6 deg or ±1e9 deg/s.
     fn errors<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         theta_deg: &Bound<'py, PyAny>,
         rate_deg_per_s: &Bound<'py, PyAny>,
@@ -101,26 +123,27 @@ impl PyKbjae {
         let f32s = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect::<Vec<f32>>();
         let theta = f32s(array::series("theta_deg", theta_deg)?);
         let rate = f32s(array::series("rate_deg_per_s", rate_deg_per_s)?);
-        let kbjae = &mut self.inner;
-        let out = py.detach(|| kbjae.errors(&theta, &rate))?;
+        let out = py.detach(|| lock(&self.inner).errors(&theta, &rate))?;
         Ok(out.into_pyarray(py).into_any())
     }
 
     /// Forgets the command history (the next `step`'s rate is 0).
-    fn reset(&mut self) {
-        self.inner.reset();
+    fn reset(&self, py: Python<'_>) {
+        py.detach(|| lock(&self.inner).reset());
     }
 
     fn __repr__(&self) -> String {
-        format!("Kbjae(sha256={:?})", self.inner.sha256())
+        format!("Kbjae(sha256={:?})", self.sha256)
     }
 }
 
 /// One branch of IBJAE's Siamese CNN (kflex-estimate's `Scnn`): a 48×48
-/// silhouette to a 256-dimensional embedding.
-#[pyclass(name = "Scnn", module = "kflex")]
+/// silhouette to a 256-dimensional embedding. Python threads may share
+/// one: their calls take turns.
+#[pyclass(name = "Scnn", module = "kflex", frozen)]
 pub struct PyScnn {
-    pub(crate) inner: Scnn,
+    pub(crate) inner: Mutex<Scnn>,
+    sha256: String,
 }
 
 #[pymethods]
@@ -131,46 +154,53 @@ impl PyScnn {
     #[staticmethod]
     #[pyo3(signature = (path, threads = 1))]
     fn load(py: Python<'_>, path: PathBuf, threads: usize) -> Result<Self> {
+        let scnn = py.detach(|| Scnn::load(&path, threads))?;
         Ok(Self {
-            inner: py.detach(|| Scnn::load(&path, threads))?,
+            sha256: scnn.sha256().to_owned(),
+            inner: Mutex::new(scnn),
         })
     }
 
     /// The model file's SHA-256 (a band database records it).
     #[getter]
     fn sha256(&self) -> &str {
-        self.inner.sha256()
+        &self.sha256
     }
 
     /// Embeds silhouettes in one model call: an (N, 48, 48) array, or one
     /// (48, 48) silhouette, of bool, uint8 (nonzero: instrument) or float32
     /// (0.0 or 1.0). Returns float32 embeddings, (N, 256) or (256,). Raises
     /// `TypeError` for another shape or dtype, `ValueError` for a float32
-    /// value other than 0 and 1.
+    /// value other than 0 and 1, `RuntimeError` for a model that answers
+    /// with a value that is not finite (damaged weights).
     fn embed<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         silhouettes: &Bound<'py, PyAny>,
     ) -> Result<Bound<'py, PyAny>> {
         let (masks, single) = array::silhouettes("silhouettes", silhouettes, SCNN_SIDE as usize)?;
-        let scnn = &mut self.inner;
+        let n = masks.len();
         let values = if masks.is_empty() {
             Vec::new()
         } else {
-            py.detach(|| scnn.embed_batch(&masks))?
+            py.detach(|| lock(&self.inner).embed_batch(&masks))?
         };
         Ok(if single {
             values.into_pyarray(py).into_any()
         } else {
-            Array2::from_shape_vec((masks.len(), EMBEDDING_DIM), values)
-                .expect("the SCNN gives 256 values per silhouette")
+            Array2::from_shape_vec((n, EMBEDDING_DIM), values)
+                .map_err(|e| {
+                    crate::error::Error::Py(pyo3::exceptions::PyRuntimeError::new_err(format!(
+                        "the SCNN's embeddings: {e}"
+                    )))
+                })?
                 .into_pyarray(py)
                 .into_any()
         })
     }
 
     fn __repr__(&self) -> String {
-        format!("Scnn(sha256={:?})", self.inner.sha256())
+        format!("Scnn(sha256={:?})", self.sha256)
     }
 }
 

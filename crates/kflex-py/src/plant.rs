@@ -105,10 +105,18 @@ serde_class!(
 
         /// θ_d (deg) and its rate (deg/s) at times `t_s` (s; a number or a
         /// float64/float32 array, whose shape the results keep). Raises
-        /// `RangeError` for a field out of its range.
+        /// `RangeError` for a field out of its range, `ValueError` for a
+        /// time that is not finite.
         fn sample<'py>(&self, py: Python<'py>, t_s: &Bound<'py, PyAny>) -> Result<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
             let sampler = self.inner.sampler()?;
             let t = array::floats("t_s", t_s)?;
+            t.try_map(|t| {
+                if t.is_finite() {
+                    Ok(t)
+                } else {
+                    Err(kflex_model::ModelError::NonFinite { name: "t_s", value: t })
+                }
+            })?;
             let theta = t.map(|t| sampler.sample(t).theta_d_deg);
             let rate = t.map(|t| sampler.sample(t).theta_d_rate_deg_per_s);
             Ok((theta.into_py(py)?, rate.into_py(py)?))

@@ -293,7 +293,7 @@ impl PyFeatureIndex {
 #[pyfunction(name = "build_band_database")]
 pub(crate) fn build_band_database_py(
     py: Python<'_>,
-    mut scnn: PyRefMut<'_, PyScnn>,
+    scnn: PyRef<'_, PyScnn>,
     camera: PyRef<'_, PyCamera>,
     instrument: PyRef<'_, PyInstrument>,
     band: PyWorkingBand,
@@ -301,10 +301,10 @@ pub(crate) fn build_band_database_py(
     translation_step_mm: f64,
 ) -> Result<PyFeatureIndex> {
     let (camera, instrument) = (camera.inner, instrument.inner);
-    let scnn = &mut scnn.inner;
+    let scnn = &scnn.inner;
     let db = py.detach(|| {
         build_band_database(
-            scnn,
+            &mut scnn.lock().unwrap_or_else(PoisonError::into_inner),
             &camera,
             &instrument,
             &band.inner,
@@ -509,10 +509,14 @@ impl PyIbjae {
 
     /// The databases to ask for a frame at `translation_mm`: those whose
     /// band holds it and, given a bend `theta_hint_deg`, the one holding it
-    /// deepest inside.
+    /// deepest inside. Raises `ValueError` for a value that is not finite.
     #[pyo3(signature = (theta_hint_deg, translation_mm))]
-    fn bands_for(&self, theta_hint_deg: Option<f64>, translation_mm: f64) -> Vec<usize> {
-        self.inner.bands_for(theta_hint_deg, translation_mm)
+    fn bands_for(&self, theta_hint_deg: Option<f64>, translation_mm: f64) -> Result<Vec<usize>> {
+        crate::camera::finite(
+            ["theta_hint_deg", "translation_mm"],
+            [theta_hint_deg.unwrap_or(0.0), translation_mm],
+        )?;
+        Ok(self.inner.bands_for(theta_hint_deg, translation_mm))
     }
 
     /// Reads the joint from `rgb` (an H×W×3 uint8 frame, any strides) with
