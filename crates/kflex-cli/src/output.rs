@@ -65,6 +65,23 @@ pub(crate) fn make_dirs(dir: &Path) -> std::io::Result<()> {
                 }
             }
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && p.is_dir() => {}
+            // a file where a folder must go: say so ("File exists" does not)
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::NotADirectory,
+                    format!("{} is a file, not a folder", p.display()),
+                ));
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotADirectory => {
+                let file = p.ancestors().skip(1).find(|a| a.is_file());
+                return Err(match file {
+                    Some(f) => std::io::Error::new(
+                        std::io::ErrorKind::NotADirectory,
+                        format!("{} is a file, not a folder", f.display()),
+                    ),
+                    None => e,
+                });
+            }
             Err(e) => return Err(e),
         }
     }

@@ -1527,25 +1527,31 @@ fn an_unwritable_output_directory_fails_before_any_run() {
     // a file where a directory of the path should be
     let blocker = dir.join("a-file");
     std::fs::write(&blocker, "not a directory").unwrap();
-    let out_dir = blocker.join("out");
-    for args in [
-        vec!["run", "--scenario", file.to_str().unwrap()],
-        vec!["run", "--sheath", "0"],
-    ] {
-        let mut all = args.clone();
-        all.extend(["--out", out_dir.to_str().unwrap()]);
-        let out = kflex(&all);
-        assert!(!out.status.success());
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            stderr.contains("cannot be written (checked before running)")
-                && stderr.contains(out_dir.to_str().unwrap())
-                && !stderr.contains("panicked"),
-            "{stderr}"
-        );
-        // no table printed: nothing ran
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        assert!(!stdout.contains("RMSE"), "{stdout}");
+    let below = blocker.join("out");
+    // the file itself as the output folder, and a folder below it
+    for out_dir in [&blocker, &below] {
+        for args in [
+            vec!["run", "--scenario", file.to_str().unwrap()],
+            vec!["run", "--sheath", "0"],
+        ] {
+            let mut all = args.clone();
+            all.extend(["--out", out_dir.to_str().unwrap()]);
+            let out = kflex(&all);
+            assert!(!out.status.success());
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert!(
+                stderr.contains("cannot be written (checked before running)")
+                    && stderr.contains(out_dir.to_str().unwrap())
+                    && !stderr.contains("panicked"),
+                "{stderr}"
+            );
+            // the cause said plainly (it read "File exists (os error 17)")
+            let said = format!("{} is a file, not a folder", blocker.display());
+            assert!(stderr.contains(&said), "{stderr}");
+            // no table printed: nothing ran
+            let stdout = String::from_utf8_lossy(&out.stdout);
+            assert!(!stdout.contains("RMSE"), "{stdout}");
+        }
     }
     assert_eq!(
         std::fs::read_to_string(&blocker).unwrap(),

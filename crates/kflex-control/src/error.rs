@@ -60,6 +60,16 @@ pub enum ControlError {
         /// The name both would have.
         stem: String,
     },
+    /// A value of one of a grid's cases out of its range.
+    #[error("case {case} ({stem}): {error}")]
+    CaseOutOfRange {
+        /// The case's place in the grid, from 1.
+        case: usize,
+        /// The case, as its files are named.
+        stem: String,
+        /// The value and its range.
+        error: RangeError,
+    },
     /// A grid's base seed so large that a repeat's (`seed + r`) would wrap
     /// past the largest 64-bit seed to 0.
     #[error(
@@ -118,7 +128,7 @@ impl ControlError {
     #[must_use]
     pub fn range(&self) -> Option<&RangeError> {
         match self {
-            Self::OutOfRange(e) => Some(e),
+            Self::OutOfRange(e) | Self::CaseOutOfRange { error: e, .. } => Some(e),
             Self::Model(e) => e.range(),
             Self::Estimate(e) => e.range(),
             _ => None,

@@ -334,8 +334,10 @@ impl ExperimentGrid {
     ///
     /// # Errors
     /// [`ControlError::OutOfRange`] naming `repeats` (`[1,`
-    /// [`MAX_REPEATS`]`]`), `spread`
-    /// (`[0, 0.5]`) or a case's `sheath_deg` (`[0, 3600]`);
+    /// [`MAX_REPEATS`]`]`) or `spread` (`[0, 0.5]`);
+    /// [`ControlError::CaseOutOfRange`] naming a case whose `sheath_deg`
+    /// lies outside `[0, max]` (`max`: the nominal plant's
+    /// [`kflex_model::SheathParams::max_sheath_deg`], at most 3600);
     /// [`ControlError::NotEnoughData`] for no cases, estimators or
     /// backgrounds, or nothing to run (estimation cases with `none` alone);
     /// [`ControlError::SharedCaseName`] for two cases that differ in their
@@ -359,8 +361,17 @@ impl ExperimentGrid {
                 });
             }
         }
-        for c in &self.cases {
-            Bounds::closed(0.0, 3600.0).check("sheath_deg", c.sheath_deg)?;
+        // the nominal plant's limit (its sheath's friction bounds the wrap),
+        // named with the case, counted from 1 as a scenario file lists them
+        let max_sheath_deg = self.plant.sheath.max_sheath_deg();
+        for (i, c) in self.cases.iter().enumerate() {
+            Bounds::closed(0.0, max_sheath_deg)
+                .check("sheath_deg", c.sheath_deg)
+                .map_err(|error| ControlError::CaseOutOfRange {
+                    case: i + 1,
+                    stem: c.file_stem(),
+                    error,
+                })?;
         }
         let mut stems: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
         for (i, c) in self.cases.iter().enumerate() {

@@ -267,7 +267,21 @@ fn bad_settings_are_named_before_any_run() {
     assert_eq!(e.range().map(|r| r.name), Some("spread"));
     let mut grid = small();
     grid.cases[1].sheath_deg = -5.0;
-    assert_eq!(named(grid).range().map(|r| r.name), Some("sheath_deg"));
+    let e = named(grid);
+    assert_eq!(e.range().map(|r| r.name), Some("sheath_deg"));
+    // the case is named, and the bound is the plant's own (its sheath's
+    // friction limits the wrap below 3600 deg), as the plant would say it
+    assert!(
+        e.to_string()
+            .starts_with("case 2 (VIII_-5deg_0pct): sheath_deg = -5 "),
+        "{e}"
+    );
+    let mut grid = small();
+    grid.cases[0].sheath_deg = 3000.0;
+    let e = named(grid.clone());
+    let max = grid.plant.sheath.max_sheath_deg();
+    assert!(max < 3000.0, "the default plant's limit binds: {max}");
+    assert_eq!(e.range().map(|r| r.bounds.max), Some(max), "{e}");
     let e = named(ExperimentGrid {
         estimators: vec![],
         ..small()

@@ -157,7 +157,9 @@ pub(crate) fn classify(e: &Error) -> Option<Kind> {
         Error::Estimate(m) => classify_estimate(m),
         Error::Control(ControlError::Estimate(m)) => classify_estimate(m),
         Error::Control(ControlError::Model(m)) => classify_model(m),
-        Error::Control(ControlError::OutOfRange(r)) => Kind::Range(*r),
+        Error::Control(
+            ControlError::OutOfRange(r) | ControlError::CaseOutOfRange { error: r, .. },
+        ) => Kind::Range(*r),
         Error::Control(
             ControlError::NotEnoughData { .. }
             | ControlError::NonFiniteSample { .. }
