@@ -363,6 +363,13 @@ def test_positions_that_are_not_finite_or_beyond_the_lens_raise():
         camera.ray_direction(-1e6, -1e6)
     with pytest.raises(ValueError, match="beyond the lens"):
         camera.lens.undistort(1e3, 0.0)
+    # objects that would not validate are not made
+    with pytest.raises(kflex.RangeError, match="roi.width"):
+        kflex.Roi.whole(0, 0)
+    bad = kflex.Intrinsics.from_fov(640, 480, 90.0)
+    bad.fx = -5.0
+    with pytest.raises(kflex.RangeError, match="fx"):
+        camera.with_intrinsics(bad)
     # inside the image the ray still points forward, bent by the barrel lens
     x, y, z = camera.ray_direction(0.0, 0.0)
     assert z == 1.0 and x < 0.0 and y < 0.0

@@ -469,7 +469,7 @@ def test_ibjae_refuses_a_database_from_another_scnn(models, paper_db) -> None:
     other.set_metadata("scnn_sha256", "0000")
     with pytest.raises(ValueError, match="0000"):
         kflex.Ibjae(models / "scnn_test.onnx", [other])
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="at least one band database"):
         kflex.Ibjae(models / "scnn_test.onnx", [])
     bare = kflex.FeatureIndex.build(paper_db.features, paper_db.theta_deg)
     with pytest.raises(ValueError, match="metadata"):

@@ -70,10 +70,10 @@ pub fn build_databases(
 /// [`EstimateError::Io`] naming the file or directory that could not be
 /// written or moved (the new directory is removed again), or kind
 /// `InvalidInput` for a `dir` that is a file, has no name of its own (`.`,
-/// `..`, `/`) or holds a directory; [`EstimateError::EmptyIndex`] for no bands.
+/// `..`, `/`) or holds a directory; [`EstimateError::NoBandDatabase`] for no bands.
 pub fn save_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
     if bands.is_empty() {
-        return Err(EstimateError::EmptyIndex);
+        return Err(EstimateError::NoBandDatabase);
     }
     write_databases(dir, bands)
 }

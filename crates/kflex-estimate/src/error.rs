@@ -113,6 +113,12 @@ pub enum EstimateError {
     /// A feature index with no points: there is no nearest neighbour to return.
     #[error("the feature index is empty: at least one feature vector is needed")]
     EmptyIndex,
+    /// IBJAE given no band database to read frames against.
+    #[error(
+        "IBJAE needs at least one band database, got none (`kflex-cli build-db` makes \
+         them; a model directory keeps them in db/)"
+    )]
+    NoBandDatabase,
     /// Reading or writing a file failed (missing, no permission, disk full).
     /// `kind` tells a missing file ([`std::io::ErrorKind::NotFound`]) from the rest.
     #[error("{}: {message}", .path.display())]

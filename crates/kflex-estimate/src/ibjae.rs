@@ -886,7 +886,7 @@ impl Ibjae {
     ///
     /// # Errors
     /// [`EstimateError::ModelMismatch`] naming both SHA-256s when a database
-    /// was built with another model; [`EstimateError::EmptyIndex`] for no
+    /// was built with another model; [`EstimateError::NoBandDatabase`] for no
     /// databases; as [`Segmenter::new`] for bad segmentation parameters.
     pub fn new(scnn: Scnn, segment: SegmentParams, bands: Vec<BandDatabase>) -> Result<Self> {
         Self::new_shared(scnn, segment, Arc::from(bands))
@@ -905,7 +905,7 @@ impl Ibjae {
         bands: Arc<[BandDatabase]>,
     ) -> Result<Self> {
         if bands.is_empty() {
-            return Err(EstimateError::EmptyIndex);
+            return Err(EstimateError::NoBandDatabase);
         }
         for b in bands.iter() {
             let built = b

@@ -212,7 +212,7 @@ fn saving_replaces_the_whole_directory_and_keeps_other_files() {
     // no bands is an error and leaves the directory as it was
     assert!(matches!(
         save_databases(&dir, &[]),
-        Err(EstimateError::EmptyIndex)
+        Err(EstimateError::NoBandDatabase)
     ));
     assert_eq!(load_databases(&dir, &camera).unwrap().len(), 2);
 }

@@ -111,8 +111,11 @@ serde_class!(
     PyRoi, "Roi", Roi, {
         /// The whole of a `width × height` image.
         #[staticmethod]
-        fn whole(width: u32, height: u32) -> Self {
-            Roi::whole(width, height).into()
+        fn whole(width: u32, height: u32) -> Result<Self> {
+            let roi = Roi::whole(width, height);
+            // as `Roi(...)` refuses: a region holds at least one pixel
+            roi.check_within(width, height)?;
+            Ok(roi.into())
         }
 
         /// The working region of the paper's operating range (θ in [0, 50]
@@ -327,11 +330,13 @@ impl PyCamera {
         Ok(self.inner.illumination(u, v))
     }
 
-    /// The same camera with other intrinsics (e.g. a region's).
-    fn with_intrinsics(&self, intrinsics: PyIntrinsics) -> Self {
-        Self {
-            inner: self.inner.with_intrinsics(intrinsics.inner),
-        }
+    /// The same camera with other intrinsics (e.g. a region's). Raises
+    /// `RangeError` where the intrinsics, or the lens with them, are out of
+    /// range (as `validate` does).
+    fn with_intrinsics(&self, intrinsics: PyIntrinsics) -> Result<Self> {
+        let camera = self.inner.with_intrinsics(intrinsics.inner);
+        camera.validate()?;
+        Ok(Self { inner: camera })
     }
 
     fn __repr__(&self) -> String {

@@ -145,7 +145,8 @@ fn classify_estimate(e: &EstimateError) -> Kind {
         | EstimateError::IndexCorrupt { .. }
         | EstimateError::IndexVersion { .. }
         | EstimateError::NonFinite { .. }
-        | EstimateError::EmptyIndex => Kind::Value,
+        | EstimateError::EmptyIndex
+        | EstimateError::NoBandDatabase => Kind::Value,
         _ => Kind::Runtime,
     }
 }
