@@ -27,6 +27,11 @@
 //! A metadata record `kflex.run` holds the scenario (its JSON form) and the
 //! run's seed. The file is written beside its path and renamed into place
 //! when complete, so a log is never half-written.
+//!
+//! [`read_mcap`] reads uncompressed logs, as kflex writes them; a log
+//! compressed with zstd or lz4 (Python's `mcap` writer compresses with
+//! zstd by default: pass `compression=CompressionType.NONE`) is refused
+//! saying so. Its joint states must follow one another in time.
 
 use std::collections::BTreeMap;
 use std::io::BufWriter;
@@ -260,6 +265,23 @@ fn log_error(path: &Path, e: impl std::fmt::Display) -> ControlError {
     ControlError::Log {
         path: path.display().to_string(),
         message: e.to_string(),
+    }
+}
+
+/// A log that cannot be read, what to do about it where that is known:
+/// kflex reads uncompressed chunks (its own logs are), and Python's `mcap`
+/// writer compresses with zstd unless told not to.
+fn read_error(path: &Path, e: &mcap::McapError) -> ControlError {
+    match e {
+        mcap::McapError::UnsupportedCompression(kind) => log_error(
+            path,
+            format!(
+                "its chunks are compressed with {kind}, and kflex reads uncompressed MCAP \
+                 only: write it without compression (Python's mcap: \
+                 Writer(f, compression=CompressionType.NONE))"
+            ),
+        ),
+        e => log_error(path, with_causes(e)),
     }
 }
 
@@ -601,8 +623,8 @@ pub fn read_mcap(path: &Path) -> Result<RecordedLog> {
     let mut infos: BTreeMap<(u64, u32), CameraFrameInfo> = BTreeMap::new();
     // the first joint state's log time and time_s: the two clocks' offset
     let mut first_state: Option<(u64, f64)> = None;
-    for message in mcap::MessageStream::new(&bytes).map_err(|e| log_error(path, e))? {
-        let m = message.map_err(|e| log_error(path, e))?;
+    for message in mcap::MessageStream::new(&bytes).map_err(|e| read_error(path, &e))? {
+        let m = message.map_err(|e| read_error(path, &e))?;
         let key = (m.log_time, m.sequence);
         let twice = |topic: &str| {
             log_error(
@@ -761,6 +783,22 @@ fn check_recorded(path: &Path, log: &RecordedLog) -> Result<()> {
     for (i, s) in log.states.iter().enumerate() {
         if let Some(e) = joint_state_error(s) {
             return Err(log_error(path, format!("joint state {i} (by time): {e}")));
+        }
+    }
+    // each tick after the one before: a replay steps the estimators by
+    // the time between them
+    for (i, pair) in log.states.windows(2).enumerate() {
+        if pair[1].time_s <= pair[0].time_s {
+            return Err(log_error(
+                path,
+                format!(
+                    "joint state {} (by time): time_s = {} does not come after the one \
+                     before it ({}): a run's ticks follow one another",
+                    i + 1,
+                    Num(pair[1].time_s),
+                    Num(pair[0].time_s)
+                ),
+            ));
         }
     }
     for (i, f) in log.frames.iter().enumerate() {

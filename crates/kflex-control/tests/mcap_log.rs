@@ -653,7 +653,7 @@ fn a_log_no_run_can_have_written_is_refused_naming_what() {
         theta_hat_deg: Some(theta_hat_deg),
         details: kflex_control::TickDetails::default(),
     };
-    let elsewhere = |name: &str, states: &[JointState]| {
+    let elsewhere_at = |name: &str, states: &[JointState], time_s: &dyn Fn(usize) -> f64| {
         let path = dir.join(name);
         let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
         let mut out = mcap::Writer::new(file).unwrap();
@@ -680,7 +680,7 @@ fn a_log_no_run_can_have_written_is_refused_naming_what() {
                 publish_time: k as u64 * 10_000_000,
             };
             let state = JointState {
-                time_s: k as f64 * 0.01,
+                time_s: time_s(k),
                 ..*s
             };
             out.write_to_known_channel(&header, &serde_json::to_vec(&state).unwrap())
@@ -689,6 +689,22 @@ fn a_log_no_run_can_have_written_is_refused_naming_what() {
         out.finish().unwrap();
         kflex_control::read_mcap(&path)
     };
+    let elsewhere =
+        |name: &str, states: &[JointState]| elsewhere_at(name, states, &|k| k as f64 * 0.01);
+    // ticks that share a time (it replayed them, each "0.01 s"; the
+    // reader orders the joint states by time, so none can go back)
+    for (name, times) in [
+        ("same.mcap", [0.01, 0.01, 0.01]),
+        ("twice.mcap", [0.0, 0.01, 0.01]),
+    ] {
+        let e = elsewhere_at(name, &[state(10.0, 9.0, 9.0); 3], &|k| times[k])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(name) && e.contains("does not come after the one before it"),
+            "{e}"
+        );
+    }
     let e = elsewhere(
         "angle.mcap",
         &[state(10.0, 9.0, 9.0), state(10.0, 1e308, 9.0)],
