@@ -151,6 +151,8 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         };
         outln!("{:>16} | {r:>13.3} {n:>7} | {camera_use}", "as logged");
     }
+    // camera-based estimators that read no angle from any of the frames
+    let mut unread = Vec::new();
     for kind in kinds {
         let mut estimator = models.make(kind, &camera)?;
         let (estimate, details) = scenario
@@ -158,6 +160,9 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
             .with_context(|| format!("replaying {}", kind.name()))?;
         let (camera, fused) = has_camera_and_filter(kind);
         let camera_use = readings(&details, camera, fused);
+        if camera && !log.frames.is_empty() && details.iter().all(|d| d.ibjae_deg.is_none()) {
+            unread.push(kind.name());
+        }
         match scored(&truth, &estimate) {
             Some((r, n)) => outln!("{:>16} | {r:>13.3} {n:>7} | {camera_use}", kind.name()),
             None => outln!(
@@ -167,6 +172,16 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
                 0
             ),
         }
+    }
+    if !unread.is_empty() {
+        outln!(
+            "\nnote: {} read no angle from the log's {} frames. A frame is read where its \
+             window holds the band the estimator reads and shows the instrument; a frame \
+             without its {} record is taken as the camera's whole image, at its own size.",
+            unread.join(", "),
+            log.frames.len(),
+            kflex_control::CAMERA_FRAMES_TOPIC
+        );
     }
     Ok(())
 }
