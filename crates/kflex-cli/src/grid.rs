@@ -73,6 +73,25 @@ impl Only {
     /// Narrows and replaces `grid`'s; an occlusion name that is none of the
     /// grid's is an error naming the valid ones.
     fn apply(&self, grid: &mut ExperimentGrid) -> Result<()> {
+        if grid.cases.is_empty() {
+            bail!("the scenario lists no case ([[cases]] with table, kind, sheath_deg, occlusion)");
+        }
+        // what the file has, for a narrowing that leaves nothing
+        let mut had_bends: Vec<f64> = grid.cases.iter().map(|c| c.sheath_deg).collect();
+        had_bends.sort_by(f64::total_cmp);
+        had_bends.dedup();
+        let mut had_occlusions: Vec<&str> = grid.cases.iter().map(|c| c.occlusion.name()).collect();
+        had_occlusions.sort_unstable();
+        had_occlusions.dedup();
+        let had = format!(
+            "the scenario's cases are at sheath {} deg, occlusion {}",
+            had_bends
+                .iter()
+                .map(|b| format!("{b}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            had_occlusions.join(", ")
+        );
         if let Some(names) = &self.occlusion {
             let valid = OcclusionCase::ALL.map(OcclusionCase::name);
             if let Some(bad) = names.iter().find(|n| !valid.contains(&n.as_str())) {
@@ -97,7 +116,7 @@ impl Only {
             grid.repeats = repeats;
         }
         if grid.cases.is_empty() {
-            bail!("no case of the scenario is left by --sheath and --occlusion");
+            bail!("no case of the scenario is left by --sheath and --occlusion ({had})");
         }
         Ok(())
     }

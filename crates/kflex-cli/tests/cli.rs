@@ -818,6 +818,17 @@ fn a_scenario_naming_what_cannot_run_is_refused_before_any_run() {
         &["run", "--scenario", path, "--sheath", "45"],
         "no case of the scenario is left",
     );
+    // and it says what the file has (SMALL_SCENARIO: 90 deg at 0 %, 0 deg at 40 %)
+    assert_refused(
+        &["run", "--scenario", path, "--sheath", "45"],
+        "cases are at sheath 0, 90 deg, occlusion 0%, 40%",
+    );
+    let empty = dir.join("empty.toml");
+    std::fs::write(&empty, "estimators = [\"none\"]\ncases = []\n").unwrap();
+    assert_refused(
+        &["run", "--scenario", empty.to_str().unwrap()],
+        "the scenario lists no case",
+    );
     for (bad, shown) in [("nan", "NaN"), ("inf", "inf")] {
         assert_refused(
             &["run", "--scenario", path, "--sheath", bad],
