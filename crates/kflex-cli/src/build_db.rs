@@ -54,7 +54,8 @@ pub fn build_db(args: &BuildDbArgs) -> Result<()> {
     .with_context(|| {
         format!(
             "building the databases (--theta-step {} deg, --d-step {} mm)",
-            args.theta_step, args.d_step
+            kflex_model::Num(args.theta_step),
+            kflex_model::Num(args.d_step)
         )
     })?;
     save_databases(&args.out, &bands).with_context(|| format!("writing {}", args.out.display()))?;

@@ -112,7 +112,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         "kflex replay — {} ({} ticks of {} s, {} frames{}{})",
         args.log.display(),
         log.states.len(),
-        scenario.motion.dt_s,
+        kflex_model::Num(scenario.motion.dt_s),
         log.frames.len(),
         log.seed.map_or(String::new(), |s| format!(", seed {s}")),
         if log.scenario.is_some() {
