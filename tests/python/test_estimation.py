@@ -86,6 +86,15 @@ def test_kbjae_steps_differentiate_the_command(kbjae_path: Path) -> None:
     with pytest.raises(ValueError, match="rate_deg_per_s"):
         k.step(6.0, 0.1, rate_deg_per_s=float("inf"))
     assert k.step(6.0, 0.1) == probe.predict(6.0, 10.0)
+    # a step's refusals name the step's own quantities: the command, and the
+    # rate differenced from the commands where none was given
+    with pytest.raises(kflex.RangeError) as e:
+        k.step(1e308, 0.1)
+    assert e.value.name == "theta_c_deg"
+    with pytest.raises(kflex.RangeError) as e:
+        k.step(1e5, 1e-6)
+    assert e.value.name.startswith("the commands' rate"), e.value.name
+    assert k.step(6.5, 0.1) == probe.predict(6.5, 5.0)  # both changed nothing
 
 
 def test_kbjae_refuses_bad_arrays(kbjae_path: Path) -> None:

@@ -64,6 +64,30 @@ impl CommandRate {
     }
 }
 
+/// [`Kbjae::predict`]'s refusal in a step's words: the command is
+/// `theta_c_deg`, and a rate the caller did not give (`differenced`) is the
+/// commands' difference, not an argument called `rate_deg_per_s`.
+fn as_step(e: crate::EstimateError, differenced: bool) -> crate::EstimateError {
+    let rename = |name: &'static str| match name {
+        "theta_deg" => "theta_c_deg",
+        "rate_deg_per_s" if differenced => "the commands' rate (their difference over dt_s), deg/s",
+        name => name,
+    };
+    match e {
+        crate::EstimateError::OutOfRange(mut r) => {
+            r.name = rename(r.name);
+            crate::EstimateError::OutOfRange(r)
+        }
+        crate::EstimateError::Model(ModelError::NonFinite { name, value }) => {
+            crate::EstimateError::Model(ModelError::NonFinite {
+                name: rename(name),
+                value,
+            })
+        }
+        e => e,
+    }
+}
+
 /// The largest command KBJAE takes, ± deg ([`Kbjae::predict`]).
 pub const MAX_THETA_DEG: f64 = 1e6;
 /// The largest command rate KBJAE takes, ± deg/s ([`Kbjae::predict`]).
@@ -166,7 +190,9 @@ impl Kbjae {
     ) -> Result<(f64, CommandRate)> {
         let mut history = self.rate;
         let difference = history.step(theta_c_deg, dt_s)?;
-        let angle = self.predict(theta_c_deg, rate_deg_per_s.unwrap_or(difference))?;
+        let angle = self
+            .predict(theta_c_deg, rate_deg_per_s.unwrap_or(difference))
+            .map_err(|e| as_step(e, rate_deg_per_s.is_none()))?;
         Ok((angle, history))
     }
 
@@ -185,16 +211,19 @@ impl Kbjae {
     /// a non-finite answer of the model;
     /// [`crate::EstimateError::Onnx`] when the model fails.
     pub fn predict(&mut self, theta_deg: f64, rate_deg_per_s: f64) -> Result<f64> {
-        for (name, value) in [("theta_deg", theta_deg), ("rate_deg_per_s", rate_deg_per_s)] {
+        // the angle whole before the rate (a step's rate is the angles'
+        // difference: a wild angle is the cause, not its rate); the network
+        // runs in f32: a value past these bounds would reach it as infinity
+        // (and no joint bends or turns that far)
+        for (name, value, max) in [
+            ("theta_deg", theta_deg, MAX_THETA_DEG),
+            ("rate_deg_per_s", rate_deg_per_s, MAX_RATE_DEG_PER_S),
+        ] {
             if !value.is_finite() {
                 return Err(ModelError::NonFinite { name, value }.into());
             }
+            kflex_model::Bounds::closed(-max, max).check(name, value)?;
         }
-        // the network runs in f32: a value past these would reach it as
-        // infinity (and no joint bends or turns that far)
-        kflex_model::Bounds::closed(-MAX_THETA_DEG, MAX_THETA_DEG).check("theta_deg", theta_deg)?;
-        kflex_model::Bounds::closed(-MAX_RATE_DEG_PER_S, MAX_RATE_DEG_PER_S)
-            .check("rate_deg_per_s", rate_deg_per_s)?;
         let mut error = [0.0f32];
         self.model
             .run(&[theta_deg as f32, rate_deg_per_s as f32], 1, &mut error)?;
