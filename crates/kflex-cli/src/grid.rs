@@ -142,7 +142,7 @@ pub fn run(
     let jobs = jobs.max(1);
     let logs_wanted = mcap && out.is_some();
     if let Some(dir) = out {
-        check_writable(dir)?;
+        check_writable(dir, &["results.json", "results.csv"])?;
     }
     if let Some(r) = only.repeats
         && !(1..=kflex_control::MAX_REPEATS).contains(&r)

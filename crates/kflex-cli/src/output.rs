@@ -34,8 +34,10 @@ pub(crate) fn paper_pm(mean: Option<f64>, std: Option<f64>) -> String {
 static MADE: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
 
 /// Makes sure the results can be written to `dir` before any work: creates
-/// it, then a file in it, which it removes.
-pub(crate) fn check_writable(dir: &Path) -> Result<()> {
+/// it, then a file in it, which it removes; and none of the files `names`
+/// the command will write there is held by something that is not a file
+/// (a folder called `results.json` would stop the writing at the end).
+pub(crate) fn check_writable(dir: &Path, names: &[&str]) -> Result<()> {
     let fail = |e: std::io::Error| {
         anyhow::Error::new(e).context(format!(
             "the output directory {} cannot be written (checked before running)",
@@ -45,7 +47,23 @@ pub(crate) fn check_writable(dir: &Path) -> Result<()> {
     make_dirs(dir).map_err(fail)?;
     let probe = dir.join(format!(".kflex-write-check-{}", std::process::id()));
     std::fs::File::create(&probe).map_err(fail)?;
-    std::fs::remove_file(&probe).map_err(fail)
+    std::fs::remove_file(&probe).map_err(fail)?;
+    for name in names {
+        let path = dir.join(name);
+        if let Ok(meta) = std::fs::symlink_metadata(&path)
+            && !meta.is_file()
+            && !meta.file_type().is_symlink()
+        {
+            return Err(fail(std::io::Error::new(
+                std::io::ErrorKind::AlreadyExists,
+                format!(
+                    "{} is there and is not a file: the results would replace it; move it away",
+                    path.display()
+                ),
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Makes `dir` and the folders above it that are missing, outermost first,

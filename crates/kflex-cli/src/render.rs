@@ -55,8 +55,16 @@ pub struct RenderArgs {
     out: PathBuf,
 }
 
+/// The files `render` writes.
+const RENDERED: [&str; 4] = [
+    "frame.png",
+    "silhouette_48.png",
+    "instrument_mask.png",
+    "occluder_mask.png",
+];
+
 pub fn render(args: &RenderArgs) -> Result<()> {
-    crate::output::check_writable(&args.out)?;
+    crate::output::check_writable(&args.out, &RENDERED)?;
     let background: Background = args.background.parse()?;
     let tissue: Tissue = args.tissue.parse()?;
     let intrinsics = if args.hd {
@@ -119,19 +127,10 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     write_atomic_set(
         &args.out,
         &[
-            ("frame.png", &rgb),
-            (
-                "silhouette_48.png",
-                &mask_png("silhouette_48.png", &silhouette)?,
-            ),
-            (
-                "instrument_mask.png",
-                &mask_png("instrument_mask.png", &frame.instrument)?,
-            ),
-            (
-                "occluder_mask.png",
-                &mask_png("occluder_mask.png", &frame.occluder)?,
-            ),
+            (RENDERED[0], &rgb),
+            (RENDERED[1], &mask_png(RENDERED[1], &silhouette)?),
+            (RENDERED[2], &mask_png(RENDERED[2], &frame.instrument)?),
+            (RENDERED[3], &mask_png(RENDERED[3], &frame.occluder)?),
         ],
     )?;
     let (seg, iou) = match segmented {

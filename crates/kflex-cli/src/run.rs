@@ -320,7 +320,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         bail!("--sheath needs at least one angle");
     }
     if let Some(dir) = &args.out {
-        check_writable(dir)?;
+        check_writable(dir, &["results.json"])?;
     }
     let (mut plant, notes) = match &args.config {
         Some(path) => {

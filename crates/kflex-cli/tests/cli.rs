@@ -1805,3 +1805,38 @@ fn flags_of_the_grid_without_a_scenario_are_refused() {
         );
     }
 }
+
+/// A folder where a result file goes is refused before any work (it was
+/// found only when the results were written, after the whole grid).
+#[test]
+fn a_folder_in_place_of_a_result_file_is_refused_before_any_run() {
+    let dir = scratch("folder-in-place");
+    let file = scenario_file(&dir);
+    let out_dir = dir.join("out");
+    for (args, name) in [
+        (
+            vec!["run", "--scenario", file.to_str().unwrap()],
+            "results.csv",
+        ),
+        (vec!["run", "--sheath", "0"], "results.json"),
+        (vec!["render", "--theta", "20", "--d", "10"], "frame.png"),
+    ] {
+        let _ = std::fs::remove_dir_all(&out_dir);
+        std::fs::create_dir_all(out_dir.join(name)).unwrap();
+        let mut all = args.clone();
+        all.extend(["--out", out_dir.to_str().unwrap()]);
+        let out = kflex(&all);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(
+            stderr.contains(&format!("{name} is there and is not a file"))
+                && stderr.contains("checked before running"),
+            "{stderr}"
+        );
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            !stdout.contains("RMSE") && !stdout.contains("IoU"),
+            "{stdout}"
+        );
+    }
+}
