@@ -1011,7 +1011,7 @@ fn build_db_refuses_a_missing_model_and_bad_steps() {
     for (step, needle) in [
         (["--theta-step", "0"], "theta_step_deg"),
         (["--d-step", "-1"], "translation_step_mm"),
-        (["--theta-step", "1e-9"], "--theta-step 0.000000001"),
+        (["--theta-step", "1e-9"], "--theta-step 1e-9 deg"),
         (["--theta-step", "1e-300"], "poses in the band's grid"),
     ] {
         let mut args = vec!["build-db", "--scnn", scnn, "--out", out];
