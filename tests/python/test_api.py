@@ -363,6 +363,13 @@ def test_positions_that_are_not_finite_or_beyond_the_lens_raise():
         camera.ray_direction(-1e6, -1e6)
     with pytest.raises(ValueError, match="beyond the lens"):
         camera.lens.undistort(1e3, 0.0)
+    # so far out that r² overflows: refused, not NaN
+    with pytest.raises(ValueError, match="beyond the lens"):
+        kflex.Lens(division=0.0).undistort(1e200, 0.0)
+    flat = kflex.Camera(lens=kflex.Lens(division=-0.15, vignetting=0.0))
+    with pytest.raises(ValueError, match="too far outside"):
+        flat.illumination(1e200, 0.0)  # 0 × inf: NaN once
+    assert camera.illumination(1e200, 0.0) == 0.0  # the light falls off to none
     # objects that would not validate are not made
     with pytest.raises(kflex.RangeError, match="roi.width"):
         kflex.Roi.whole(0, 0)

@@ -95,6 +95,10 @@ def test_kbjae_steps_differentiate_the_command(kbjae_path: Path) -> None:
         k.step(1e5, 1e-6)
     assert e.value.name.startswith("the commands' rate"), e.value.name
     assert k.step(6.5, 0.1) == probe.predict(6.5, 5.0)  # both changed nothing
+    # the batch checks the values as given, before float32 makes 1e39 infinite
+    with pytest.raises(kflex.RangeError) as e:
+        k.errors(np.array([1e39]), np.array([0.0]))
+    assert e.value.name == "theta_deg"
 
 
 def test_kbjae_refuses_bad_arrays(kbjae_path: Path) -> None:
@@ -178,7 +182,8 @@ def test_a_model_that_answers_nan_is_a_runtime_error_not_a_number(models: Models
     masks, _ = scnn_case(models)
     with pytest.raises(RuntimeError, match="damaged"):
         scnn.embed(masks)
-    # one at a time too, and a failed embedding is not remembered for the next call
+    # one at a time too, every time (Python's embed goes through the batch
+    # call, which keeps no embeddings: each call runs the model again)
     for _ in range(2):
         with pytest.raises(RuntimeError, match="damaged"):
             scnn.embed(masks[0])

@@ -64,8 +64,8 @@ pub fn build_db(args: &BuildDbArgs) -> Result<()> {
         "wrote {} databases ({} entries, {}° × {} mm grid, SCNN {}) to {} in {:.1} s",
         bands.len(),
         entries,
-        args.theta_step,
-        args.d_step,
+        kflex_model::Num(args.theta_step),
+        kflex_model::Num(args.d_step),
         &scnn.sha256()[..12],
         args.out.display(),
         start.elapsed().as_secs_f64()

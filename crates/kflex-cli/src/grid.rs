@@ -258,7 +258,7 @@ pub fn run(
                 Some(Collector::new(&grid))
             }
             Err(why) => {
-                eprintln!("kflex-cli: warning: no figures: {why}");
+                errln!("kflex-cli: warning: no figures: {why}");
                 None
             }
         },

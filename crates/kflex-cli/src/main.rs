@@ -12,6 +12,14 @@ macro_rules! outln {
     }};
 }
 
+/// `eprintln!` that a closed standard error does not stop (`2>&1 | head`).
+macro_rules! errln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 /// `print!` as [`outln!`] (no line end).
 macro_rules! out {
     ($($arg:tt)*) => {{
@@ -101,13 +109,13 @@ fn main() -> ExitCode {
                 )
             });
             if interrupted {
-                eprintln!(
+                errln!(
                     "kflex-cli: interrupted: stopped after the runs in progress; no results \
                      written (the MCAP logs written so far are whole)"
                 );
                 return ExitCode::from(130);
             }
-            eprintln!("kflex-cli: error: {err:#}");
+            errln!("kflex-cli: error: {err:#}");
             ExitCode::FAILURE
         }
     }

@@ -64,7 +64,12 @@ const RENDERED: [&str; 4] = [
 ];
 
 pub fn render(args: &RenderArgs) -> Result<()> {
-    crate::output::check_writable(&args.out, &RENDERED)?;
+    let names: Vec<&str> = RENDERED
+        .iter()
+        .chain(SEGMENTATION_FILES.iter())
+        .copied()
+        .collect();
+    crate::output::check_writable(&args.out, &names)?;
     let background: Background = args.background.parse()?;
     let tissue: Tissue = args.tissue.parse()?;
     let intrinsics = if args.hd {
@@ -139,7 +144,7 @@ pub fn render(args: &RenderArgs) -> Result<()> {
             for name in SEGMENTATION_FILES {
                 let stale = args.out.join(name);
                 match std::fs::remove_file(&stale) {
-                    Ok(()) => eprintln!(
+                    Ok(()) => errln!(
                         "removed {}: it held another frame's segmentation",
                         stale.display()
                     ),

@@ -362,7 +362,10 @@ impl ExperimentGrid {
             }
         }
         // the nominal plant's limit (its sheath's friction bounds the wrap),
-        // named with the case, counted from 1 as a scenario file lists them
+        // the plant checked first (a bad sheath parameter is named itself,
+        // not as a case's bend outside [0, NaN]); the case counted from 1
+        // in the grid as it runs (after any narrowing)
+        self.plant.validate()?;
         let max_sheath_deg = self.plant.sheath.max_sheath_deg();
         for (i, c) in self.cases.iter().enumerate() {
             Bounds::closed(0.0, max_sheath_deg)

@@ -451,7 +451,7 @@ impl ClosedLoopTrace {
             if (0.0..1.8e19).contains(&ns) {
                 Ok(ns as u64)
             } else {
-                Err(err(format!("time {time_s} s does not fit the log")))
+                Err(err(format!("time {} s does not fit the log", Num(time_s))))
             }
         };
         let frames = if self.camera_frames.is_empty() {

@@ -139,8 +139,9 @@ impl Kbjae {
     /// last; returns KBJAE's angle `θ_c + θ̃(θ_c, θ_c')`, deg.
     ///
     /// # Errors
-    /// As [`CommandRate::step`] (the estimator is then unchanged), or
-    /// [`crate::EstimateError::Onnx`] when the model fails.
+    /// As [`CommandRate::step`]; as [`Kbjae::predict`], the angle named
+    /// `theta_c_deg` and the rate differenced from the commands named as
+    /// theirs (the estimator is unchanged after any of these).
     pub fn step(&mut self, theta_c_deg: f64, dt_s: f64) -> Result<f64> {
         self.advance(theta_c_deg, None, dt_s)
     }
@@ -203,18 +204,17 @@ impl Kbjae {
         self.rate = history;
     }
 
-    /// KBJAE's angle for a command and its rate, deg (no history kept).
+    /// Checks one input of the network: a finite angle within
+    /// ±[`MAX_THETA_DEG`], then a finite rate within ±[`MAX_RATE_DEG_PER_S`]
+    /// (the angle first: a step's rate is the angles' difference, so a wild
+    /// angle is the cause). The network runs in `f32`: a value past these
+    /// bounds would reach it as infinity (and no joint bends or turns that
+    /// far). Check a caller's `f64` values before rounding them to `f32`.
     ///
     /// # Errors
-    /// [`crate::EstimateError::Model`] for a non-finite input, an angle
-    /// beyond ±[`MAX_THETA_DEG`] or a rate beyond ±[`MAX_RATE_DEG_PER_S`], or
-    /// a non-finite answer of the model;
-    /// [`crate::EstimateError::Onnx`] when the model fails.
-    pub fn predict(&mut self, theta_deg: f64, rate_deg_per_s: f64) -> Result<f64> {
-        // the angle whole before the rate (a step's rate is the angles'
-        // difference: a wild angle is the cause, not its rate); the network
-        // runs in f32: a value past these bounds would reach it as infinity
-        // (and no joint bends or turns that far)
+    /// [`crate::EstimateError::Model`] naming a value that is not finite,
+    /// [`crate::EstimateError::OutOfRange`] one beyond its bound.
+    pub fn check_input(theta_deg: f64, rate_deg_per_s: f64) -> Result<()> {
         for (name, value, max) in [
             ("theta_deg", theta_deg, MAX_THETA_DEG),
             ("rate_deg_per_s", rate_deg_per_s, MAX_RATE_DEG_PER_S),
@@ -224,16 +224,19 @@ impl Kbjae {
             }
             kflex_model::Bounds::closed(-max, max).check(name, value)?;
         }
+        Ok(())
+    }
+
+    /// KBJAE's angle for a command and its rate, deg (no history kept).
+    ///
+    /// # Errors
+    /// As [`Kbjae::check_input`]; [`crate::EstimateError::Onnx`] when the
+    /// model fails or answers with a value that is not finite.
+    pub fn predict(&mut self, theta_deg: f64, rate_deg_per_s: f64) -> Result<f64> {
+        Self::check_input(theta_deg, rate_deg_per_s)?;
         let mut error = [0.0f32];
         self.model
             .run(&[theta_deg as f32, rate_deg_per_s as f32], 1, &mut error)?;
-        if !error[0].is_finite() {
-            return Err(ModelError::NonFinite {
-                name: "the model's predicted error",
-                value: f64::from(error[0]),
-            }
-            .into());
-        }
         Ok(theta_deg + f64::from(error[0]))
     }
 
@@ -242,9 +245,8 @@ impl Kbjae {
     ///
     /// # Errors
     /// [`crate::EstimateError::Length`] when the slices differ in length;
-    /// [`crate::EstimateError::Model`] for a non-finite input, an angle
-    /// beyond ±[`MAX_THETA_DEG`] or a rate beyond ±[`MAX_RATE_DEG_PER_S`];
-    /// [`crate::EstimateError::Onnx`] when the model fails.
+    /// as [`Kbjae::check_input`] for each pair; [`crate::EstimateError::Onnx`]
+    /// when the model fails or answers with a value that is not finite.
     pub fn errors(&mut self, theta_deg: &[f32], rate_deg_per_s: &[f32]) -> Result<Vec<f32>> {
         if theta_deg.len() != rate_deg_per_s.len() {
             return Err(crate::EstimateError::Length {
@@ -255,23 +257,7 @@ impl Kbjae {
         }
         let mut input = Vec::with_capacity(2 * theta_deg.len());
         for (&t, &r) in theta_deg.iter().zip(rate_deg_per_s) {
-            if !(t.is_finite() && r.is_finite()) {
-                let (name, value) = if t.is_finite() {
-                    ("rate_deg_per_s", r)
-                } else {
-                    ("theta_deg", t)
-                };
-                return Err(ModelError::NonFinite {
-                    name,
-                    value: f64::from(value),
-                }
-                .into());
-            }
-            // as `predict`: past these the network sees infinities
-            kflex_model::Bounds::closed(-MAX_THETA_DEG, MAX_THETA_DEG)
-                .check("theta_deg", f64::from(t))?;
-            kflex_model::Bounds::closed(-MAX_RATE_DEG_PER_S, MAX_RATE_DEG_PER_S)
-                .check("rate_deg_per_s", f64::from(r))?;
+            Self::check_input(f64::from(t), f64::from(r))?;
             input.extend([t, r]);
         }
         let mut out = vec![0.0f32; theta_deg.len()];

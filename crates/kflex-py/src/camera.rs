@@ -21,14 +21,16 @@ pub(crate) fn finite(names: [&'static str; 2], values: [f64; 2]) -> Result<()> {
 /// `ValueError` where normalised distorted coordinates `(xd, yd)` lie beyond
 /// the division model's reach: `1 + λ r² ≤ 0` bends the ray backwards.
 fn within_lens(lens: &kflex_model::Lens, xd: f64, yd: f64) -> Result<()> {
-    let q = 1.0 + lens.division * (xd * xd + yd * yd);
-    if q > 0.0 {
+    let r2 = xd * xd + yd * yd;
+    let q = 1.0 + lens.division * r2;
+    if r2.is_finite() && q > 0.0 {
         return Ok(());
     }
     Err(Error::Py(pyo3::exceptions::PyValueError::new_err(format!(
         "normalised position ({xd:e}, {yd:e}) lies beyond the lens's reach: 1 + λ r² = \
-         {q:e} with λ = {} (only 1 + λ r² > 0 bends the ray forward)",
-        lens.division
+         {} with λ = {} (r² must be finite and 1 + λ r² > 0 to bend the ray forward)",
+        kflex_model::Num(q),
+        kflex_model::Num(lens.division)
     ))))
 }
 use crate::plant::{PyJointParams, PyTranslationParams};
@@ -327,7 +329,14 @@ impl PyCamera {
     /// `ValueError` for a position that is not finite.
     fn illumination(&self, u: f64, v: f64) -> Result<f64> {
         finite(["u", "v"], [u, v])?;
-        Ok(self.inner.illumination(u, v))
+        let light = self.inner.illumination(u, v);
+        if !light.is_finite() {
+            // so far out that r² overflows
+            return Err(Error::Py(pyo3::exceptions::PyValueError::new_err(format!(
+                "pixel position ({u:e}, {v:e}) is too far outside the image for the lens model"
+            ))));
+        }
+        Ok(light)
     }
 
     /// The same camera with other intrinsics (e.g. a region's). Raises

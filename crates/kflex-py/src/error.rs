@@ -332,6 +332,31 @@ mod tests {
                 Kind::Value,
             ),
             (
+                Error::Control(ControlError::SeedOverflow {
+                    seed: u64::MAX,
+                    repeats: 3,
+                    largest_base: u64::MAX - 2,
+                }),
+                Kind::Value,
+            ),
+            (
+                Error::Control(ControlError::NoEstimate {
+                    estimator: "ibjae",
+                    case: "V_0deg_0pct".into(),
+                    seed: 1,
+                }),
+                Kind::Value,
+            ),
+            (
+                Error::Control(ControlError::CaseOutOfRange {
+                    case: 2,
+                    stem: "IX_90deg_0pct".into(),
+                    error: range(),
+                }),
+                Kind::Range(range()),
+            ),
+            (Error::Estimate(EstimateError::NoBandDatabase), Kind::Value),
+            (
                 Error::Serde("invalid type: string \"a\", expected f64".into()),
                 Kind::Type,
             ),

@@ -62,7 +62,10 @@ impl PyKbjae {
     /// backward difference of the commands (0 on the first tick).
     /// Returns KBJAE's angle θ_c + θ̃, deg. Raises `ValueError` for a
     /// non-finite command or rate, `RangeError` for `dt_s` outside
-    /// (0, 3600]; the estimator is then unchanged.
+    /// (0, 3600], a command beyond ±1e6 deg or a rate beyond ±1e9 deg/s
+    /// (the one differenced from the commands too), `RuntimeError` for a
+    /// model that answers with a value that is not finite (damaged
+    /// weights); the estimator is then unchanged.
     #[pyo3(signature = (theta_c_deg, dt_s, rate_deg_per_s = None))]
     fn step(
         &self,
@@ -120,9 +123,16 @@ impl PyKbjae {
         theta_deg: &Bound<'py, PyAny>,
         rate_deg_per_s: &Bound<'py, PyAny>,
     ) -> Result<Bound<'py, PyAny>> {
+        let (theta, rate) = (
+            array::series("theta_deg", theta_deg)?,
+            array::series("rate_deg_per_s", rate_deg_per_s)?,
+        );
+        // checked as given, before float32 rounds a large value to infinity
+        for (&t, &r) in theta.iter().zip(&rate) {
+            Kbjae::check_input(t, r)?;
+        }
         let f32s = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect::<Vec<f32>>();
-        let theta = f32s(array::series("theta_deg", theta_deg)?);
-        let rate = f32s(array::series("rate_deg_per_s", rate_deg_per_s)?);
+        let (theta, rate) = (f32s(theta), f32s(rate));
         let out = py.detach(|| lock(&self.inner).errors(&theta, &rate))?;
         Ok(out.into_pyarray(py).into_any())
     }

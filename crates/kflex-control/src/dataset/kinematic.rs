@@ -145,6 +145,8 @@ impl KinematicDatasetConfig {
     /// `dt_s` outside `(0, 10]`, more than 5e7 plant ticks in a set (its
     /// warm-up included),
     /// `warmup_cycles` above 1000, `spread` outside `[0, 0.5]`;
+    /// [`ControlError::SeedOverflow`] for a `seed` whose sets (set `i` on
+    /// `seed + i`) would pass the largest seed;
     /// [`ControlError::Model`] for the nominal plant's parameters.
     pub fn validate(&self) -> Result<()> {
         Bounds::closed(1.0, 1000.0).check("sets.len()", self.sets.len() as f64)?;
@@ -170,6 +172,11 @@ impl KinematicDatasetConfig {
             )?;
         }
         Bounds::closed(0.0, 0.5).check("spread", self.spread)?;
+        // set i is made on seed + i: the last must not wrap to 0
+        crate::experiment::check_seed(
+            self.seed,
+            u32::try_from(self.sets.len()).unwrap_or(u32::MAX),
+        )?;
         self.plant.perturbed(self.seed, self.spread)?;
         Ok(())
     }
@@ -435,6 +442,15 @@ mod tests {
                 .name
                 .starts_with("ticks a set")
         );
+        // set i runs on seed + i: three sets from the largest seed would wrap
+        let bad = KinematicDatasetConfig {
+            seed: u64::MAX - 1,
+            ..small()
+        };
+        assert!(matches!(
+            bad.validate(),
+            Err(ControlError::SeedOverflow { repeats: 3, .. })
+        ));
         // a peak the joint cannot reach
         let mut bad = small();
         bad.sets[0].amplitude_deg = 169.0;
