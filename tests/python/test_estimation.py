@@ -95,6 +95,12 @@ def test_kbjae_steps_differentiate_the_command(kbjae_path: Path) -> None:
         k.step(1e5, 1e-6)
     assert e.value.name.startswith("the commands' rate"), e.value.name
     assert k.step(6.5, 0.1) == probe.predict(6.5, 5.0)  # both changed nothing
+    # a run is all or nothing: a bad last command leaves the history as it was
+    k.reset()
+    k.step(1.0, 0.1)
+    with pytest.raises(ValueError, match="theta_c_deg"):
+        k.run(np.array([2.0, 3.0, np.nan]), 0.1)
+    assert k.step(1.5, 0.1) == probe.predict(1.5, 5.0)  # from 1.0, not from 3.0
     # the batch checks the values as given, before float32 makes 1e39 infinite
     with pytest.raises(kflex.RangeError) as e:
         k.errors(np.array([1e39]), np.array([0.0]))

@@ -123,6 +123,27 @@ fn swap_names(dir: &Path) -> Result<(PathBuf, PathBuf)> {
     Ok((sibling("new"), sibling("old")))
 }
 
+/// An error about a file of the hidden new directory `fresh`, named as the
+/// file it was to become in `dir` (a user knows `db/band-002.kfdb`, not
+/// `.db.new-888/band-002.kfdb`).
+fn as_final(e: EstimateError, fresh: &Path, dir: &Path) -> EstimateError {
+    match e {
+        EstimateError::Io {
+            path,
+            kind,
+            message,
+        } => {
+            let named = path.strip_prefix(fresh).ok().map(|rest| dir.join(rest));
+            EstimateError::Io {
+                path: named.unwrap_or(path),
+                kind,
+                message,
+            }
+        }
+        e => e,
+    }
+}
+
 /// The error for a directory found inside the databases' directory, which
 /// is replaced whole.
 fn subdirectory(path: PathBuf) -> EstimateError {
@@ -189,7 +210,7 @@ fn write_databases(dir: &Path, bands: &[BandDatabase]) -> Result<()> {
     })();
     if let Err(e) = written {
         let _ = std::fs::remove_dir_all(&fresh);
-        return Err(e);
+        return Err(as_final(e, &fresh, dir));
     }
     // the swap: the old directory aside, the new one in its place
     let had_old = dir.exists();
@@ -249,4 +270,37 @@ pub fn load_databases(dir: &Path, camera: &Camera) -> Result<Vec<BandDatabase>> 
         bands.push(BandDatabase::from_index(index)?);
     }
     Ok(bands)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_of_the_new_copy_is_named_as_the_file_it_becomes() {
+        let (dir, fresh) = (Path::new("/data/db"), Path::new("/data/.db.new-888"));
+        let io = |path: &str| EstimateError::Io {
+            path: PathBuf::from(path),
+            kind: std::io::ErrorKind::StorageFull,
+            message: "No space left on device (os error 28)".into(),
+        };
+        let named = |e: EstimateError| match e {
+            EstimateError::Io { path, .. } => path,
+            e => panic!("{e}"),
+        };
+        assert_eq!(
+            named(as_final(io("/data/.db.new-888/band-002.kfdb"), fresh, dir)),
+            Path::new("/data/db/band-002.kfdb")
+        );
+        assert_eq!(named(as_final(io("/data/.db.new-888"), fresh, dir)), dir);
+        // a file elsewhere keeps its name, and other errors pass as they are
+        assert_eq!(
+            named(as_final(io("/data/db/README"), fresh, dir)),
+            Path::new("/data/db/README")
+        );
+        assert!(matches!(
+            as_final(EstimateError::NoBandDatabase, fresh, dir),
+            EstimateError::NoBandDatabase
+        ));
+    }
 }

@@ -146,6 +146,25 @@ impl Kbjae {
         self.advance(theta_c_deg, None, dt_s)
     }
 
+    /// [`Kbjae::step`] for each command of `theta_c_deg`, each `dt_s` after
+    /// the one before: KBJAE's angles, deg. All or nothing: on a refused
+    /// command the error is returned and the estimator is as it was before
+    /// the call.
+    ///
+    /// # Errors
+    /// As [`Kbjae::step`], for the first command refused.
+    pub fn run(&mut self, theta_c_deg: &[f64], dt_s: f64) -> Result<Vec<f64>> {
+        let before = self.rate;
+        let angles = theta_c_deg
+            .iter()
+            .map(|&t| self.step(t, dt_s))
+            .collect::<Result<Vec<f64>>>();
+        if angles.is_err() {
+            self.rate = before;
+        }
+        angles
+    }
+
     /// One tick with the rate given instead of taken from the commands'
     /// differences: the command `theta_c_deg` sent this tick and `rate_deg_per_s`,
     /// e.g. the master's θ_d' (the paper's input is the master's

@@ -86,7 +86,7 @@ impl PyKbjae {
     /// `step` for each command of `theta_c_deg` (a one-dimensional array,
     /// deg), each `dt_s` after the one before; returns KBJAE's angles
     /// (float64). On a refused command the error is raised and the
-    /// estimator keeps the ticks before it.
+    /// estimator is as it was before the call.
     fn run<'py>(
         &self,
         py: Python<'py>,
@@ -94,13 +94,7 @@ impl PyKbjae {
         dt_s: f64,
     ) -> Result<Bound<'py, PyAny>> {
         let theta = array::series("theta_c_deg", theta_c_deg)?;
-        let angles = py.detach(|| {
-            let mut kbjae = lock(&self.inner);
-            theta
-                .iter()
-                .map(|&t| kbjae.step(t, dt_s))
-                .collect::<kflex_estimate::Result<Vec<f64>>>()
-        })?;
+        let angles = py.detach(|| lock(&self.inner).run(&theta, dt_s))?;
         Ok(array::column(py, angles))
     }
 
