@@ -312,6 +312,9 @@ def test_segmentation_refuses_other_dtypes_and_shapes():
         s.segment(np.zeros((8, 8), np.uint8), roi)
     with pytest.raises(TypeError, match=r"got shape \[8, 8, 4\]"):
         s.segment(np.zeros((8, 8, 4), np.uint8), roi)
+    # an empty image is named as one (it was called "not HxWx3 uint8", which it is)
+    with pytest.raises(TypeError, match=r"an empty image \(0x0 px\)"):
+        s.segment(np.zeros((0, 0, 3), np.uint8), roi)
     with pytest.raises(kflex.RangeError, match="roi.y0 \\+ roi.height"):
         s.segment(np.zeros((8, 8, 3), np.uint8), kflex.Roi(x0=0, y0=4, width=8, height=8))
     with pytest.raises(kflex.RangeError, match="split_range"):

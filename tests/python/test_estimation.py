@@ -338,7 +338,8 @@ def test_the_index_file_keeps_everything(tmp_path: Path) -> None:
 
 def test_the_index_refuses_bad_input() -> None:
     index, features, theta = random_index(n=50, dim=8)
-    with pytest.raises(TypeError, match="query"):
+    # the shape as given: a (7,) query was reported as "(1, 7)"
+    with pytest.raises(TypeError, match=r"query: expected shape .* got \(7,\)"):
         index.nearest(np.zeros(7, np.float32))
     with pytest.raises(ValueError, match="component 3"):
         index.nearest(np.array([0, 0, 0, np.nan, 0, 0, 0, 0], np.float32))

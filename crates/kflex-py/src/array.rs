@@ -154,9 +154,15 @@ pub(crate) fn rgb(obj: &Bound<'_, PyAny>) -> Result<(Vec<u8>, u32, u32)> {
     let (Ok(wu), Ok(hu)) = (u32::try_from(w), u32::try_from(h)) else {
         return Err(type_error(format!("rgb: image of {w}x{h} px is too large")));
     };
-    if c != 3 || w == 0 || h == 0 {
+    if c != 3 {
         return Err(type_error(format!(
             "rgb: expected an HxWx3 uint8 array, got {}",
+            describe()?
+        )));
+    }
+    if w == 0 || h == 0 {
+        return Err(type_error(format!(
+            "rgb: an empty image ({w}x{h} px): an image needs at least one pixel, got {}",
             describe()?
         )));
     }

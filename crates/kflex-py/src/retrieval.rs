@@ -104,8 +104,13 @@ impl PyFeatureIndex {
                 Some(n) => format!("({dim},) or ({n}, {dim})"),
                 None => format!("(N, {dim})"),
             };
+            // the shape as given (a (5,) array is read as one row of 5)
+            let given = obj
+                .getattr("shape")
+                .and_then(|shape| shape.str())
+                .map_or_else(|_| format!("({r}, {c})"), |shape| shape.to_string());
             return Err(crate::error::type_error(format!(
-                "{name}: expected shape {wanted} for an index of {dim} dimensions, got ({r}, {c})"
+                "{name}: expected shape {wanted} for an index of {dim} dimensions, got {given}"
             )));
         }
         Ok(values)
