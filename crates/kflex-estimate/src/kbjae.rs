@@ -238,9 +238,7 @@ impl Kbjae {
             ("theta_deg", theta_deg, MAX_THETA_DEG),
             ("rate_deg_per_s", rate_deg_per_s, MAX_RATE_DEG_PER_S),
         ] {
-            if !value.is_finite() {
-                return Err(ModelError::NonFinite { name, value }.into());
-            }
+            kflex_model::finite(name, value)?;
             kflex_model::Bounds::closed(-max, max).check(name, value)?;
         }
         Ok(())

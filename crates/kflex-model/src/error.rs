@@ -120,8 +120,12 @@ impl ModelError {
 /// Result alias for this crate.
 pub type Result<T> = std::result::Result<T, ModelError>;
 
-/// Checks `value` is finite, naming it in the error.
-pub(crate) fn finite(name: &'static str, value: f64) -> Result<f64> {
+/// Checks `value` is finite, naming it in the error
+/// ([`ModelError::NonFinite`]): the one such check of every kflex crate.
+///
+/// # Errors
+/// [`ModelError::NonFinite`] for NaN or an infinity.
+pub fn finite(name: &'static str, value: f64) -> Result<f64> {
     if value.is_finite() {
         Ok(value)
     } else {

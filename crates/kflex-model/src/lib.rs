@@ -75,7 +75,7 @@ mod workspace;
 
 pub use as_built::{BuildTolerances, BuiltInstrument};
 pub use camera::{Camera, Intrinsics, Lens};
-pub use error::{ModelError, Result};
+pub use error::{ModelError, Result, finite};
 pub use hysteresis::{Backlash, BoucWen, BoucWenParams, Play};
 pub use instrument::{Body, Ends, Instrument, InstrumentParams, InstrumentShape, Part};
 pub use joint::{JointModelKind, JointParams};

@@ -11,9 +11,7 @@ use crate::error::{Error, Result};
 /// `ValueError` naming the first of `values` that is not finite.
 pub(crate) fn finite(names: [&'static str; 2], values: [f64; 2]) -> Result<()> {
     for (name, value) in names.into_iter().zip(values) {
-        if !value.is_finite() {
-            return Err(kflex_model::ModelError::NonFinite { name, value }.into());
-        }
+        kflex_model::finite(name, value)?;
     }
     Ok(())
 }

@@ -110,13 +110,7 @@ serde_class!(
         fn sample<'py>(&self, py: Python<'py>, t_s: &Bound<'py, PyAny>) -> Result<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
             let sampler = self.inner.sampler()?;
             let t = array::floats("t_s", t_s)?;
-            t.try_map(|t| {
-                if t.is_finite() {
-                    Ok(t)
-                } else {
-                    Err(kflex_model::ModelError::NonFinite { name: "t_s", value: t })
-                }
-            })?;
+            t.try_map(|t| kflex_model::finite("t_s", t))?;
             let theta = t.map(|t| sampler.sample(t).theta_d_deg);
             let rate = t.map(|t| sampler.sample(t).theta_d_rate_deg_per_s);
             Ok((theta.into_py(py)?, rate.into_py(py)?))

@@ -27,7 +27,7 @@ mod paper;
 pub use adaptive::{AdaptiveKalman, AdaptiveParams};
 pub use paper::{FilterRate, KalmanParams, PaperKalman};
 
-use kflex_model::{Bounds, ModelError};
+use kflex_model::Bounds;
 use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
@@ -130,28 +130,20 @@ pub trait Fusion {
 
 /// Checks one tick's inputs before a filter changes anything.
 pub(crate) fn check_inputs(dt_s: f64, m: &Measurements) -> Result<()> {
-    finite("dt_s", dt_s)?;
+    kflex_model::finite("dt_s", dt_s)?;
     Bounds::open_closed(0.0, 3600.0).check("dt_s", dt_s)?;
     // within ±1e6 deg: larger readings would overflow the covariance's
     // arithmetic to infinities, and no joint bends that far
     if let Some(z) = m.kbjae_deg {
-        finite("kbjae_deg", z)?;
+        kflex_model::finite("kbjae_deg", z)?;
         Bounds::closed(-1e6, 1e6).check("kbjae_deg", z)?;
     }
     if let Some(z) = m.ibjae_deg {
-        finite("ibjae_deg", z)?;
+        kflex_model::finite("ibjae_deg", z)?;
         Bounds::closed(-1e6, 1e6).check("ibjae_deg", z)?;
     }
     if let Some(s) = m.ibjae_sigma_deg {
         Bounds::closed(0.0, 1e6).check("ibjae_sigma_deg", s)?;
     }
     Ok(())
-}
-
-fn finite(name: &'static str, value: f64) -> Result<()> {
-    if value.is_finite() {
-        Ok(())
-    } else {
-        Err(ModelError::NonFinite { name, value }.into())
-    }
 }
