@@ -314,6 +314,12 @@ def test_the_index_finds_the_exact_nearest_neighbour() -> None:
     # a database point is its own nearest neighbour, at distance 0
     hit = index.nearest(features[123].astype(np.float64))
     assert (hit.index, hit.distance_sq) == (123, 0.0)
+    # 400 points are scanned; the tree, asked for, gives the same answers
+    assert index.search == "scan"
+    tree = kflex.FeatureIndex.build(features, theta, 10.0, search="tree")
+    assert tree.search == "tree"
+    for key in ("index", "distance_sq"):
+        assert np.array_equal(tree.nearest_batch(queries)[key], batch[key])
 
 
 def test_the_index_file_keeps_everything(tmp_path: Path) -> None:
@@ -351,6 +357,12 @@ def test_the_index_refuses_bad_input() -> None:
         index.nearest(np.zeros(8, np.int64))
     with pytest.raises(ValueError, match="projection_dims"):
         kflex.FeatureIndex.build(features, theta, 0.0, projection_dims=5)
+    with pytest.raises(ValueError, match="search"):
+        kflex.FeatureIndex.build(features, theta, 0.0, search="kd")
+    many = np.random.default_rng(3).random((2049, 4), dtype=np.float32)
+    with pytest.raises(ValueError, match="Search::Scan"):
+        kflex.FeatureIndex.build(many, np.zeros(2049), search="scan")
+    assert kflex.FeatureIndex.build(many, np.zeros(2049)).search == "tree"
     with pytest.raises(TypeError, match="poses"):
         kflex.FeatureIndex.build(features, theta[:-1])
     with pytest.raises(ValueError, match="empty"):

@@ -6,7 +6,7 @@
 //! cargo run --release -p kflex-estimate --features index --example index_bench -- \
 //!     generate --n 10000 --queries 1000 --out /tmp/idx            # db.npy, poses.npy, queries.npy
 //! cargo run --release -p kflex-estimate --features index --example index_bench -- \
-//!     time --dir /tmp/idx [--k 8] [--rounds 3]                    # JSON on stdout
+//!     time --dir /tmp/idx [--k 8] [--rounds 3] [--search auto|tree|scan]   # JSON on stdout
 //! ```
 //!
 //! `time` builds the index from `db.npy` (N×D f32) and `poses.npy` (N×2 f64),
@@ -22,7 +22,7 @@ mod manifold;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use kflex_estimate::{FeatureIndex, IndexParams, Pose, ProjectionDims};
+use kflex_estimate::{FeatureIndex, IndexParams, Pose, ProjectionDims, Search};
 use manifold::{Manifold, rng};
 
 /// Default noise of the synthetic manifold, per component (see `tests/support/manifold.rs`).
@@ -60,7 +60,12 @@ fn run() -> Result<(), String> {
             arg(&args, "--dim", 256)?,
             arg(&args, "--seed", 1)?,
         ),
-        Some("time") => time(&dir, arg(&args, "--k", 8)?, arg(&args, "--rounds", 3)?),
+        Some("time") => time(
+            &dir,
+            arg(&args, "--k", 8)?,
+            arg(&args, "--rounds", 3)?,
+            &arg(&args, "--search", "auto".to_string())?,
+        ),
         _ => Err("usage: index_bench generate|time [options] (see the file's docs)".into()),
     }
 }
@@ -86,7 +91,13 @@ fn generate(dir: &Path, n: usize, queries: usize, dim: usize, seed: u64) -> Resu
     Ok(())
 }
 
-fn time(dir: &Path, k: usize, rounds: usize) -> Result<(), String> {
+fn time(dir: &Path, k: usize, rounds: usize, search: &str) -> Result<(), String> {
+    let search_method = match search {
+        "auto" => Search::Auto,
+        "tree" => Search::Tree,
+        "scan" => Search::Scan,
+        _ => return Err("--search must be auto, tree or scan".into()),
+    };
     let (shape, features) = read_npy_f32(&dir.join("db.npy"))?;
     let (qshape, queries) = read_npy_f32(&dir.join("queries.npy"))?;
     let (n, dim) = (shape[0], shape[1]);
@@ -96,8 +107,16 @@ fn time(dir: &Path, k: usize, rounds: usize) -> Result<(), String> {
     let poses = read_poses(&dir.join("poses.npy"), n)?;
     let projection_dims = ProjectionDims::from_count(k).ok_or("--k must be 8, 12 or 16")?;
     let t = Instant::now();
-    let index = FeatureIndex::build(&features, dim, &poses, IndexParams { projection_dims })
-        .map_err(|e| e.to_string())?;
+    let index = FeatureIndex::build(
+        &features,
+        dim,
+        &poses,
+        IndexParams {
+            projection_dims,
+            search: search_method,
+        },
+    )
+    .map_err(|e| e.to_string())?;
     let build_ms = t.elapsed().as_secs_f64() * 1e3;
     let file = dir.join("index.kfi");
     let t = Instant::now();
@@ -130,11 +149,16 @@ fn time(dir: &Path, k: usize, rounds: usize) -> Result<(), String> {
         &answer_bytes,
     )?;
     println!(
-        "{{\"n\": {n}, \"dim\": {dim}, \"k\": {k}, \"queries\": {}, \"build_ms\": {build_ms:.3}, \
+        "{{\"n\": {n}, \"dim\": {dim}, \"k\": {k}, \"search\": \"{}\", \"queries\": {}, \"build_ms\": {build_ms:.3}, \
          \"save_ms\": {save_ms:.3}, \"load_ms\": {load_ms:.3}, \
          \"index_us_median\": {:.4}, \"index_us_mean\": {:.4}, \
          \"linear_us_median\": {:.4}, \"linear_us_mean\": {:.4}, \
          \"full_distances_mean\": {:.3}}}",
+        if index.search_method() == Search::Scan {
+            "scan"
+        } else {
+            "tree"
+        },
         rows.len(),
         index_us.0,
         index_us.1,

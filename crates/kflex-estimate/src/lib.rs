@@ -153,7 +153,7 @@ pub use ibjae::{
     UNEXPLAINED_SIGMA_DEG, build_band_database, keys,
 };
 #[cfg(feature = "index")]
-pub use index::{FeatureIndex, IndexParams, Neighbour, Pose, ProjectionDims, SearchStats};
+pub use index::{FeatureIndex, IndexParams, Neighbour, Pose, ProjectionDims, Search, SearchStats};
 #[cfg(feature = "onnx")]
 pub use kbjae::{CommandRate, KBJAE_INPUT, KBJAE_OUTPUT, Kbjae, MAX_RATE_DEG_PER_S, MAX_THETA_DEG};
 /// The shared types this crate's API takes and returns.

@@ -6,7 +6,9 @@
 #[path = "support/manifold.rs"]
 mod manifold;
 
-use kflex_estimate::{EstimateError, FeatureIndex, IndexParams, Neighbour, Pose, ProjectionDims};
+use kflex_estimate::{
+    EstimateError, FeatureIndex, IndexParams, Neighbour, Pose, ProjectionDims, Search,
+};
 use manifold::{Manifold, random_points, rng};
 use rand::Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -22,8 +24,27 @@ fn poses(n: usize) -> Vec<Pose> {
         .collect()
 }
 
-fn params(k: ProjectionDims) -> IndexParams {
-    IndexParams { projection_dims: k }
+fn params(k: ProjectionDims, search: Search) -> IndexParams {
+    IndexParams {
+        projection_dims: k,
+        search,
+    }
+}
+
+/// Both ways to search the projected space: each must be exact.
+const SEARCHES: [Search; 2] = [Search::Tree, Search::Scan];
+
+/// The index over `features` searched each way, default projection.
+fn both(features: &[f32], dim: usize, poses: &[Pose]) -> Vec<FeatureIndex> {
+    SEARCHES
+        .iter()
+        .map(|&s| {
+            let index =
+                FeatureIndex::build(features, dim, poses, params(ProjectionDims::K8, s)).unwrap();
+            assert_eq!(index.search_method(), s);
+            index
+        })
+        .collect()
 }
 
 /// Asserts the index and the linear scan agree on every row of `queries`;
@@ -57,7 +78,6 @@ fn identical_to_brute_force_on_ten_thousand_manifold_queries() {
     let surface = Manifold::new(D, manifold::DEFAULT_NOISE_STD, 7);
     let n = 2000;
     let (features, poses) = surface.sample(n, &mut r);
-    let index = FeatureIndex::build(&features, D, &poses, IndexParams::default()).unwrap();
     let quarter = 2500;
     // the database points themselves (the first 2000, then 500 again)
     let own: Vec<f32> = features
@@ -71,20 +91,22 @@ fn identical_to_brute_force_on_ten_thousand_manifold_queries() {
     let (fresh, _) = surface.sample(quarter, &mut r);
     // points off the surface, at its spread around its mean
     let off = random_points(quarter, D, 1.0 / (D as f64).sqrt(), &mut r);
-    let mut work = Vec::new();
-    for (queries, what) in [
-        (&own, "database"),
-        (&moved, "perturbed"),
-        (&fresh, "fresh"),
-        (&off, "random"),
-    ] {
-        assert_eq!(queries.len(), quarter * D);
-        work.push((what, assert_exact(&index, queries, what)));
-    }
-    // the point of the index: far fewer full distances than the 2000 of a scan
-    for (what, w) in &work {
-        if *what != "random" {
-            assert!(*w < 200.0, "{what}: {w} full distances per query");
+    for index in both(&features, D, &poses) {
+        let mut work = Vec::new();
+        for (queries, what) in [
+            (&own, "database"),
+            (&moved, "perturbed"),
+            (&fresh, "fresh"),
+            (&off, "random"),
+        ] {
+            assert_eq!(queries.len(), quarter * D);
+            work.push((what, assert_exact(&index, queries, what)));
+        }
+        // the point of the index: far fewer full distances than the 2000 of a scan
+        for (what, w) in &work {
+            if *what != "random" {
+                assert!(*w < 200.0, "{what}: {w} full distances per query");
+            }
         }
     }
 }
@@ -96,10 +118,12 @@ fn every_projection_width_is_exact() {
     let (features, poses) = surface.sample(1000, &mut r);
     let (queries, _) = surface.sample(300, &mut r);
     for k in ProjectionDims::ALL {
-        let index = FeatureIndex::build(&features, D, &poses, params(k)).unwrap();
-        assert_eq!(index.projection_dims(), k);
-        assert_exact(&index, &queries, "fresh");
-        assert_exact(&index, &features[..300 * D], "database");
+        for search in SEARCHES {
+            let index = FeatureIndex::build(&features, D, &poses, params(k, search)).unwrap();
+            assert_eq!(index.projection_dims(), k);
+            assert_exact(&index, &queries, "fresh");
+            assert_exact(&index, &features[..300 * D], "database");
+        }
     }
 }
 
@@ -108,11 +132,12 @@ fn identical_to_brute_force_on_random_data() {
     let mut r = rng(3);
     for (n, dim) in [(1000, 64), (500, 256), (300, 9)] {
         let features = random_points(n, dim, 1.0, &mut r);
-        let index = FeatureIndex::build(&features, dim, &poses(n), IndexParams::default()).unwrap();
         let queries = random_points(1000, dim, 1.0, &mut r);
-        assert_exact(&index, &queries, "random");
         let moved = perturbed(&features[..200 * dim], 0.05, &mut r);
-        assert_exact(&index, &moved, "perturbed");
+        for index in both(&features, dim, &poses(n)) {
+            assert_exact(&index, &queries, "random");
+            assert_exact(&index, &moved, "perturbed");
+        }
     }
 }
 
@@ -123,59 +148,120 @@ fn narrow_features_any_dimension() {
         let n = 400;
         let features = random_points(n, dim, 3.0, &mut r);
         for k in ProjectionDims::ALL {
-            let index = FeatureIndex::build(&features, dim, &poses(n), params(k)).unwrap();
             let queries = random_points(300, dim, 3.0, &mut r);
-            assert_exact(&index, &queries, "random");
-            assert_exact(&index, &features, "database");
+            for search in SEARCHES {
+                let index = FeatureIndex::build(&features, dim, &poses(n), params(k, search));
+                let index = index.unwrap();
+                assert_exact(&index, &queries, "random");
+                assert_exact(&index, &features, "database");
+            }
         }
     }
 }
 
 #[test]
 fn ties_go_to_the_lowest_index() {
-    // duplicates: every query finds the first copy
-    let mut r = rng(5);
-    let base = random_points(50, D, 1.0, &mut r);
-    let features: Vec<f32> = base.iter().chain(&base).chain(&base).copied().collect();
-    let index = FeatureIndex::build(&features, D, &poses(150), IndexParams::default()).unwrap();
-    for i in 0..150 {
-        let found = index.nearest(&features[i * D..][..D]).unwrap();
-        assert_eq!((found.index, found.distance_sq), (i % 50, 0.0));
-    }
-    assert_exact(&index, &random_points(200, D, 1.0, &mut r), "random");
+    for search in SEARCHES {
+        let build = |f: &[f32], dim: usize, n: usize| {
+            FeatureIndex::build(f, dim, &poses(n), params(ProjectionDims::K8, search)).unwrap()
+        };
+        // duplicates: every query finds the first copy
+        let mut r = rng(5);
+        let base = random_points(50, D, 1.0, &mut r);
+        let features: Vec<f32> = base.iter().chain(&base).chain(&base).copied().collect();
+        let index = build(&features, D, 150);
+        for i in 0..150 {
+            let found = index.nearest(&features[i * D..][..D]).unwrap();
+            assert_eq!(
+                (found.index, found.distance_sq),
+                (i % 50, 0.0),
+                "{search:?}"
+            );
+        }
+        assert_exact(&index, &random_points(200, D, 1.0, &mut r), "random");
 
-    // equidistant points: ±e_j around the origin, queried at the origin
-    let mut features = vec![0.0_f32; 2 * 8 * D];
-    for j in 0..8 {
-        features[(2 * j) * D + j] = 1.0;
-        features[(2 * j + 1) * D + j] = -1.0;
-    }
-    let index = FeatureIndex::build(&features, D, &poses(16), IndexParams::default()).unwrap();
-    let found = index.nearest(&[0.0; D]).unwrap();
-    assert_eq!((found.index, found.distance_sq), (0, 1.0));
-    assert_exact(&index, &random_points(200, D, 0.5, &mut r), "random");
+        // equidistant points: ±e_j around the origin, queried at the origin
+        let mut features = vec![0.0_f32; 2 * 8 * D];
+        for j in 0..8 {
+            features[(2 * j) * D + j] = 1.0;
+            features[(2 * j + 1) * D + j] = -1.0;
+        }
+        let index = build(&features, D, 16);
+        let found = index.nearest(&[0.0; D]).unwrap();
+        assert_eq!((found.index, found.distance_sq), (0, 1.0), "{search:?}");
+        assert_exact(&index, &random_points(200, D, 0.5, &mut r), "random");
 
-    // one point repeated: index 0 always
-    let same = vec![0.25_f32; 40 * 3];
-    let index = FeatureIndex::build(&same, 3, &poses(40), IndexParams::default()).unwrap();
-    for q in [[0.25, 0.25, 0.25], [9.0, -1.0, 0.0]] {
-        assert_eq!(index.nearest(&q).unwrap().index, 0);
+        // one point repeated: index 0 always
+        let same = vec![0.25_f32; 40 * 3];
+        let index = build(&same, 3, 40);
+        for q in [[0.25, 0.25, 0.25], [9.0, -1.0, 0.0]] {
+            assert_eq!(index.nearest(&q).unwrap().index, 0, "{search:?}");
+        }
     }
+}
+
+/// Sizes around the scan's blocks of 16 (a partial last block, one point,
+/// exactly whole blocks) and on either side of where `Auto` changes from the
+/// scan to the tree.
+#[test]
+fn every_size_is_exact_and_auto_picks_by_size() {
+    let mut r = rng(10);
+    for n in [1, 2, 15, 16, 17, 31, 33, 100] {
+        let features = random_points(n, 24, 1.0, &mut r);
+        let queries = random_points(100, 24, 1.0, &mut r);
+        for index in both(&features, 24, &poses(n)) {
+            assert_exact(&index, &queries, "random");
+            assert_exact(&index, &features, "database");
+        }
+    }
+    let max = Search::SCAN_MAX_POINTS;
+    for (n, chosen) in [(max, Search::Scan), (max + 1, Search::Tree)] {
+        let features = random_points(n, 4, 1.0, &mut r);
+        let index = FeatureIndex::build(&features, 4, &poses(n), IndexParams::default()).unwrap();
+        assert_eq!(index.search_method(), chosen, "{n} points");
+        assert_exact(&index, &random_points(200, 4, 1.0, &mut r), "random");
+        // the other way gives the same answers, where it is allowed
+        let other = match chosen {
+            Search::Scan => Search::Tree,
+            _ => Search::Scan,
+        };
+        match index.with_search(other) {
+            Ok(index) => {
+                assert_eq!(index.search_method(), other);
+                assert_exact(&index, &random_points(200, 4, 1.0, &mut r), "random");
+            }
+            Err(EstimateError::OutOfRange(e)) => {
+                assert_eq!(n, max + 1);
+                assert!(e.to_string().contains("Search::Scan"), "{e}");
+            }
+            Err(e) => panic!("{e}"),
+        }
+    }
+    // a scan over more points than it takes is refused when built
+    let features = random_points(max + 1, 4, 1.0, &mut r);
+    let refused = FeatureIndex::build(
+        &features,
+        4,
+        &poses(max + 1),
+        params(ProjectionDims::K8, Search::Scan),
+    );
+    assert!(matches!(refused, Err(EstimateError::OutOfRange(_))));
 }
 
 #[test]
 fn a_single_point_is_always_the_answer() {
-    let index = FeatureIndex::build(&[1.0, 2.0], 2, &poses(1), IndexParams::default()).unwrap();
-    let found = index.nearest(&[4.0, 6.0]).unwrap();
-    assert_eq!(
-        found,
-        Neighbour {
-            index: 0,
-            pose: poses(1)[0],
-            distance_sq: 25.0
-        }
-    );
-    assert_eq!(found.distance(), 5.0);
+    for index in both(&[1.0, 2.0], 2, &poses(1)) {
+        let found = index.nearest(&[4.0, 6.0]).unwrap();
+        assert_eq!(
+            found,
+            Neighbour {
+                index: 0,
+                pose: poses(1)[0],
+                distance_sq: 25.0
+            }
+        );
+        assert_eq!(found.distance(), 5.0);
+    }
 }
 
 #[test]
@@ -308,12 +394,12 @@ fn extreme_magnitudes_stay_exact() {
             .iter()
             .map(|x| (f64::from(*x) * scale).clamp(-1e15, 1e15) as f32)
             .collect();
-        let index =
-            FeatureIndex::build(&features, 16, &poses(200), IndexParams::default()).unwrap();
         let queries: Vec<f32> = random_points(200, 16, 0.3, &mut r)
             .iter()
             .map(|x| (f64::from(*x) * scale).clamp(-1e15, 1e15) as f32)
             .collect();
-        assert_exact(&index, &queries, "scaled");
+        for index in both(&features, 16, &poses(200)) {
+            assert_exact(&index, &queries, "scaled");
+        }
     }
 }

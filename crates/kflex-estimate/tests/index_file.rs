@@ -23,8 +23,16 @@ fn temp(name: &str) -> PathBuf {
 fn small_index(n: usize, dim: usize, k: ProjectionDims) -> FeatureIndex {
     let surface = Manifold::new(dim, DEFAULT_NOISE_STD, 3);
     let (features, poses) = surface.sample(n, &mut rng(n as u64));
-    let mut index =
-        FeatureIndex::build(&features, dim, &poses, IndexParams { projection_dims: k }).unwrap();
+    let mut index = FeatureIndex::build(
+        &features,
+        dim,
+        &poses,
+        IndexParams {
+            projection_dims: k,
+            ..IndexParams::default()
+        },
+    )
+    .unwrap();
     index.set_metadata("model_sha256", "3f".repeat(32));
     index.set_metadata("camera", "v2 640×480, lens k1 = -0.28");
     index.set_metadata("grid", "theta -90..90 step 1 deg × d 8..40 step 1 mm");

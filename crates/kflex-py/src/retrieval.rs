@@ -8,7 +8,7 @@ use std::sync::{Mutex, PoisonError};
 use kflex_estimate::{
     AdaptiveKalman, BandDatabase, DEFAULT_MIN_SILHOUETTE_IOU, FeatureIndex, Fusion, Ibjae,
     IbjaeReading, IndexParams, Kbjae, Lbhjae, Neighbour, PaperKalman, Pose, ProjectionDims,
-    RgbView, Scnn, SegmentParams, build_band_database,
+    RgbView, Scnn, Search, SegmentParams, build_band_database,
 };
 use kflex_model::{Camera, Command, Instrument};
 use numpy::IntoPyArray;
@@ -122,18 +122,34 @@ impl PyFeatureIndex {
     /// Builds the index: `features` an (N, D) float32 or float64 array
     /// (float64 rounded to float32), `theta_deg` the N bends (deg),
     /// `translation_mm` a number or the N translations (mm; None: 0),
-    /// `projection_dims` the principal axes the tree uses (8, 12 or 16).
+    /// `projection_dims` the principal axes the search uses (8, 12 or 16),
+    /// `search` how it finds candidates there: "tree" (kiddo's k-d tree),
+    /// "scan" (every projected point in one pass; at most 2,048 points) or
+    /// "auto" (the scan up to 2,048 points, the tree above); the answers
+    /// are the same exact neighbours whichever is chosen.
     /// Raises `TypeError` for arrays of other shapes, `ValueError` for
-    /// NaN or infinite values, no features or another `projection_dims`.
+    /// NaN or infinite values, no features, another `projection_dims` or
+    /// `search`, or "scan" on more points.
     #[staticmethod]
-    #[pyo3(signature = (features, theta_deg, translation_mm = None, projection_dims = 8))]
+    #[pyo3(signature = (features, theta_deg, translation_mm = None, projection_dims = 8, search = "auto"))]
     fn build(
         py: Python<'_>,
         features: &Bound<'_, PyAny>,
         theta_deg: &Bound<'_, PyAny>,
         translation_mm: Option<&Bound<'_, PyAny>>,
         projection_dims: usize,
+        search: &str,
     ) -> Result<Self> {
+        let search = match search {
+            "auto" => Search::Auto,
+            "tree" => Search::Tree,
+            "scan" => Search::Scan,
+            other => {
+                return Err(value_error(format!(
+                    "search = {other:?}: must be \"auto\", \"tree\" or \"scan\""
+                )));
+            }
+        };
         let (features, _, dim) = array::rows_f32("features", features, false)?;
         let theta = array::series("theta_deg", theta_deg)?;
         let translation = match translation_mm {
@@ -154,6 +170,7 @@ impl PyFeatureIndex {
                     "projection_dims = {projection_dims}: must be 8, 12 or 16"
                 ))
             })?,
+            search,
         };
         Ok(Self {
             inner: py.detach(|| FeatureIndex::build(&features, dim, &poses, params))?,
@@ -234,6 +251,15 @@ impl PyFeatureIndex {
     #[getter]
     fn projection_dims(&self) -> usize {
         self.inner.projection_dims().get()
+    }
+
+    /// How queries search: "tree" or "scan" (what "auto" chose).
+    #[getter]
+    fn search(&self) -> &'static str {
+        match self.inner.search_method() {
+            Search::Scan => "scan",
+            _ => "tree",
+        }
     }
 
     /// A copy of the features, (N, D) float32.

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use super::{FeatureIndex, Pose, ProjectionDims};
+use super::{FeatureIndex, IndexParams, Pose, ProjectionDims, Search};
 use crate::error::{EstimateError, Result};
 
 /// Magic bytes at the start of every feature-index file.
@@ -260,7 +260,10 @@ impl FeatureIndex {
             features,
             dim,
             poses,
-            projection,
+            IndexParams {
+                projection_dims: projection,
+                search: Search::Auto,
+            },
             Some((mean, axes)),
             metadata,
         )

@@ -183,6 +183,21 @@ impl Kernel {
         }
     }
 
+    /// Whether every value of `values` lies within `±limit` (false when one
+    /// is NaN).
+    #[inline]
+    pub(crate) fn all_within(self, values: &[f32], limit: f32) -> bool {
+        match self {
+            Self::Portable => all_within_with(values, limit),
+            // SAFETY: as in `squared_distance`.
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx2 => unsafe { all_within_avx2(values, limit) },
+            // SAFETY: as in `squared_distance`.
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx512 => unsafe { all_within_avx512(values, limit) },
+        }
+    }
+
     /// [`project`] (its bits) in this build: `x − mean` on the rows of
     /// `rows` (each `x.len()` wide) into `out`, one value a row.
     #[inline]
@@ -202,6 +217,25 @@ impl Kernel {
             Self::Avx512 => unsafe { project_avx512(rows, mean, x, out) },
         }
     }
+}
+
+/// Whether every value lies within `±limit` (false for a NaN): one
+/// branch-free pass that the SIMD builds compare 8 or 16 values at a time.
+#[inline(always)]
+fn all_within_with(values: &[f32], limit: f32) -> bool {
+    values.iter().fold(true, |ok, v| ok & (v.abs() <= limit))
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn all_within_avx2(values: &[f32], limit: f32) -> bool {
+    all_within_with(values, limit)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn all_within_avx512(values: &[f32], limit: f32) -> bool {
+    all_within_with(values, limit)
 }
 
 /// The linear scan, with the distance kernel `dist` inlined into the loop.
