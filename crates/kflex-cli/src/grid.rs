@@ -264,12 +264,19 @@ pub fn run(
         },
         _ => None,
     };
+    // the logs this run writes, to tell them from an earlier run's
+    let written_logs = std::sync::Mutex::new(Vec::new());
     let on_run = |run: &GridRun<'_>| {
         if let Some(f) = &figures {
             f.take(run);
         }
         match &logs {
-            Some(dir) => run.write_logs(dir).map(|_| ()),
+            Some(dir) => run.write_logs(dir).map(|paths| {
+                written_logs
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner)
+                    .extend(paths);
+            }),
             None => Ok(()),
         }
     };
@@ -282,6 +289,10 @@ pub fn run(
     }
     if let Some(dir) = &logs {
         outln!("wrote the runs' MCAP logs to {}", dir.display());
+        let written = written_logs
+            .into_inner()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        note_earlier(dir, &["mcap"], &written, "MCAP logs");
     }
     let rows = records
         .iter()
@@ -325,9 +336,30 @@ pub fn run(
                 written.len() / 2,
                 plots.display()
             );
+            note_earlier(&plots, &["png", "svg"], &written, "figures");
         }
     }
     Ok(())
+}
+
+/// Says so when `dir` holds files (of extensions `exts`) that this run did
+/// not write (`written`): an earlier run's into the same folder, which a
+/// reader could take for this run's. They are left in place.
+fn note_earlier(dir: &Path, exts: &[&str], written: &[PathBuf], what: &str) {
+    let earlier = crate::output::files_besides(dir, exts, written);
+    if let Some(first) = earlier.first() {
+        let n = earlier.len();
+        outln!(
+            "note: {} also holds {n} file{} of {what} that this run did not write (from an \
+             earlier run into this folder, such as {}); they are left as they were",
+            dir.display(),
+            if n == 1 { "" } else { "s" },
+            first.file_name().map_or_else(
+                || first.display().to_string(),
+                |n| n.to_string_lossy().into_owned()
+            ),
+        );
+    }
 }
 
 #[derive(Serialize)]

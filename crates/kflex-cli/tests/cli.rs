@@ -653,6 +653,39 @@ fn scenario_file(dir: &Path) -> PathBuf {
     path
 }
 
+/// A rerun into the same folder says which logs and figures there are not
+/// its own (an earlier run's, of other cases), and leaves them.
+#[test]
+fn a_rerun_names_the_files_an_earlier_run_left() {
+    let dir = scratch("rerun");
+    let file = scenario_file(&dir);
+    let out_dir = dir.join("out");
+    let (f, o) = (file.to_str().unwrap(), out_dir.to_str().unwrap());
+    let first = stdout_of(&run_scenario(f, &["--mcap"], o));
+    assert!(!first.contains("did not write"), "{first}");
+    let earlier = out_dir.join("runs").join("VI_90deg_0pct_none_seed7.mcap");
+    std::fs::write(&earlier, b"an earlier run's log").unwrap();
+    let figures = out_dir.join("plots");
+    let figure = figures.join("table_VI_rmse.svg");
+    if figures.is_dir() {
+        std::fs::write(&figure, b"<svg/>").unwrap();
+    }
+    let again = stdout_of(&run_scenario(f, &["--mcap"], o));
+    assert!(
+        again.contains("also holds 1 file of MCAP logs that this run did not write")
+            && again.contains("VI_90deg_0pct_none_seed7.mcap"),
+        "{again}"
+    );
+    assert_eq!(std::fs::read(&earlier).unwrap(), b"an earlier run's log");
+    if figures.is_dir() {
+        assert!(
+            again.contains("1 file of figures") && again.contains("table_VI_rmse.svg"),
+            "{again}"
+        );
+        assert!(figure.exists());
+    }
+}
+
 #[test]
 fn a_scenario_runs_its_grid_and_writes_json_and_csv() {
     let dir = scratch("scenario");
