@@ -262,6 +262,27 @@ fn keep_aside(dir: &Path, name: &str, path: &Path) -> std::io::Result<PathBuf> {
     Err(last.unwrap_or_else(|| std::io::Error::other("no free name to keep the old file under")))
 }
 
+/// The files in `dir` whose extension is one of `exts` and that are not in
+/// `written`, sorted by name (none when `dir` cannot be read).
+pub fn files_besides(dir: &Path, exts: &[&str], written: &[PathBuf]) -> Vec<PathBuf> {
+    let ours: std::collections::HashSet<&std::ffi::OsStr> =
+        written.iter().filter_map(|p| p.file_name()).collect();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut others: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.is_file()
+                && p.extension()
+                    .is_some_and(|e| exts.iter().any(|x| e.eq_ignore_ascii_case(x)))
+                && p.file_name().is_some_and(|n| !ours.contains(n))
+        })
+        .collect();
+    others.sort();
+    others
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -333,25 +354,4 @@ mod tests {
         );
         let _ = std::fs::remove_dir_all(&dir);
     }
-}
-
-/// The files in `dir` whose extension is one of `exts` and that are not in
-/// `written`, sorted by name (none when `dir` cannot be read).
-pub fn files_besides(dir: &Path, exts: &[&str], written: &[PathBuf]) -> Vec<PathBuf> {
-    let ours: std::collections::HashSet<&std::ffi::OsStr> =
-        written.iter().filter_map(|p| p.file_name()).collect();
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return Vec::new();
-    };
-    let mut others: Vec<PathBuf> = entries
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.is_file()
-                && p.extension()
-                    .is_some_and(|e| exts.iter().any(|x| e.eq_ignore_ascii_case(x)))
-                && p.file_name().is_some_and(|n| !ours.contains(n))
-        })
-        .collect();
-    others.sort();
-    others
 }
