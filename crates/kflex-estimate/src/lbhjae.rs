@@ -1,7 +1,7 @@
 //! LBHJAE: KBJAE and IBJAE fused by a Kalman filter, as one estimator a
 //! controller steps once per tick (cargo features `onnx` and `index`).
 
-use kflex_model::{Command, Roi};
+use kflex_model::{Bounds, Command, Roi};
 
 use crate::error::Result;
 use crate::fusion::{Estimate, Fusion, Measurements};
@@ -102,8 +102,10 @@ impl Lbhjae {
     /// last, and the camera's frame if one arrived.
     ///
     /// # Errors
-    /// A non-finite command or a bad `dt_s`; a frame whose regions do not
-    /// fit it; faults of the models. The estimator is then unchanged. A frame
+    /// A non-finite command or a bad `dt_s`; with a frame, a translation no
+    /// database of IBJAE holds ([`crate::EstimateError::OutOfRange`] naming
+    /// `translation_mm` and the databases' span); a frame whose regions do
+    /// not fit it; faults of the models. The estimator is then unchanged. A frame
     /// with no instrument in it is no error: IBJAE's reading is missing.
     pub fn step(
         &mut self,
@@ -172,6 +174,11 @@ impl Lbhjae {
                 let hint = self.hint();
                 self.ibjae
                     .bands_for_into(hint, command.translation_mm, &mut self.bands);
+                if self.bands.is_empty() {
+                    // no database holds the translation: an error, not a
+                    // fusion that quietly goes on without IBJAE
+                    self.check_translation(command.translation_mm)?;
+                }
                 match reads {
                     Some(reads) => self.ibjae.read_sharing(frame, &self.bands, reads)?,
                     None => self.ibjae.read(frame, &self.bands)?,
@@ -201,6 +208,24 @@ impl Lbhjae {
         };
         self.last = Some(estimate);
         Ok(estimate)
+    }
+
+    /// Checks `translation_mm` lies within the translations of IBJAE's
+    /// databases (the span of their bands').
+    fn check_translation(&self, translation_mm: f64) -> Result<()> {
+        let (lo, hi) =
+            self.ibjae
+                .bands()
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| {
+                    let [d0, d1] = b.band.poses.translation_mm;
+                    (lo.min(d0), hi.max(d1))
+                });
+        Bounds::closed(lo, hi).check(
+            "translation_mm (the translations IBJAE's databases hold)",
+            translation_mm,
+        )?;
+        Ok(())
     }
 
     /// Back to the start: no command history, the filter at its initial state.

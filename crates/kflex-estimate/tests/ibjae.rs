@@ -206,12 +206,31 @@ fn lbhjae_fuses_both_and_runs_without_frames() {
         .step_with_rate(good, f64::INFINITY, 0.01, None)
         .unwrap_err();
     assert!(e.to_string().contains("rate_deg_per_s"), "{e}");
+    // a frame at a translation no database holds is an error naming it, not
+    // a fusion that quietly goes on without IBJAE
+    let shape = Instrument::kflex().shape(20.0, 10.0).unwrap();
+    let frame = renderer
+        .render(&camera, &shape, &FrameParams::default())
+        .unwrap();
+    let view = RgbView::packed(&frame.rgb, frame.width, frame.height).unwrap();
+    let far = Command {
+        theta_c_deg: 20.0,
+        translation_mm: 45.0,
+    };
+    let e = lbhjae.step(far, 0.01, Some(&view)).unwrap_err();
+    assert!(
+        e.to_string().contains("translation_mm") && e.to_string().contains("45"),
+        "{e}"
+    );
     assert_eq!(format!("{lbhjae:?}"), before);
     // KBJAE inside reads the rate given: a frameless tick's KBJAE reading is
     // its own model's at that rate
     let mut probe = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
     let e = lbhjae.step_with_rate(good, -12.0, 0.01, None).unwrap();
     assert_eq!(e.kbjae_deg, probe.predict(20.0, -12.0).unwrap());
+    // without a frame IBJAE reads nothing, whatever the translation
+    let e = lbhjae.step(far, 0.01, None).unwrap();
+    assert!(e.ibjae.is_none() && e.fused.theta_hat_deg.is_finite());
 }
 
 #[test]
