@@ -200,7 +200,14 @@ impl Lens {
         } else {
             -1.0
         };
-        Bounds::closed(lowest, 0.0).check("lens.division", self.division)?;
+        // the least value depends on the intrinsics: a principal point moved
+        // towards one side (cx, cy) or a shorter focal length puts the
+        // farthest corner farther out, so say so where it was set
+        Bounds::closed(lowest, 0.0).check(
+            "lens.division (its least value set by the intrinsics: the image corner \
+             farthest from the principal point cx, cy, in focal lengths)",
+            self.division,
+        )?;
         Bounds::closed(0.0, 10.0).check("lens.vignetting", self.vignetting)?;
         Ok(())
     }
