@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -493,6 +494,11 @@ def test_ibjae_gives_none_without_an_instrument_and_refuses_bad_frames(models, c
         ibjae.read(np.zeros((64, 64, 3), np.uint8), [0])
     with pytest.raises(TypeError, match="uint8"):
         ibjae.read(np.zeros((k.height, k.width, 3), np.float32), [0])
+    # a band out of the list is a RangeError; a negative one is named as given
+    with pytest.raises(kflex.RangeError, match="band"):
+        ibjae.read(flat, [1])
+    with pytest.raises(ValueError, match=re.escape("bands[1] = -1: must be a whole number from 0 to")):
+        ibjae.read(flat, [0, -1])
 
 
 def test_ibjae_refuses_a_database_from_another_scnn(models, paper_db) -> None:

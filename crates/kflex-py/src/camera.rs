@@ -6,7 +6,7 @@ use kflex_model::{
 };
 use pyo3::prelude::*;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Int, Result, unsigned};
 
 /// `ValueError` naming the first of `values` that is not finite.
 pub(crate) fn finite(names: [&'static str; 2], values: [f64; 2]) -> Result<()> {
@@ -48,7 +48,8 @@ serde_class!(
         /// Square pixels, centred principal point, horizontal field of view
         /// `hfov_deg` (deg); `RangeError` outside (1, 179).
         #[staticmethod]
-        fn from_fov(width: u32, height: u32, hfov_deg: f64) -> Result<Self> {
+        fn from_fov(width: Int, height: Int, hfov_deg: f64) -> Result<Self> {
+            let (width, height) = (unsigned("width", width)?, unsigned("height", height)?);
             Ok(Intrinsics::from_fov(width, height, hfov_deg)?.into())
         }
 
@@ -65,7 +66,8 @@ serde_class!(
 
         /// The intrinsics of the camera that sees the region `x0, y0, w, h`
         /// (px) of this image resampled to `out_w × out_h`.
-        fn region(&self, x0: f64, y0: f64, w: f64, h: f64, out_w: u32, out_h: u32) -> Result<Self> {
+        fn region(&self, x0: f64, y0: f64, w: f64, h: f64, out_w: Int, out_h: Int) -> Result<Self> {
+            let (out_w, out_h) = (unsigned("out_w", out_w)?, unsigned("out_h", out_h)?);
             Ok(self.inner.region(x0, y0, w, h, out_w, out_h)?.into())
         }
     }
@@ -111,7 +113,8 @@ serde_class!(
     PyRoi, "Roi", Roi, {
         /// The whole of a `width × height` image.
         #[staticmethod]
-        fn whole(width: u32, height: u32) -> Result<Self> {
+        fn whole(width: Int, height: Int) -> Result<Self> {
+            let (width, height) = (unsigned("width", width)?, unsigned("height", height)?);
             let roi = Roi::whole(width, height);
             // as `Roi(...)` refuses: a region holds at least one pixel
             roi.check_within(width, height)?;
@@ -129,7 +132,8 @@ serde_class!(
         /// The smallest region of `camera`'s image holding the joint and
         /// gripper of `instrument` over `poses`, plus `margin_px` (px).
         #[staticmethod]
-        fn for_workspace(py: Python<'_>, camera: PyRef<'_, PyCamera>, instrument: PyRef<'_, PyInstrument>, poses: PyPoseRange, margin_px: u32) -> Result<Self> {
+        fn for_workspace(py: Python<'_>, camera: PyRef<'_, PyCamera>, instrument: PyRef<'_, PyInstrument>, poses: PyPoseRange, margin_px: Int) -> Result<Self> {
+            let margin_px = unsigned("margin_px", margin_px)?;
             let (camera, instrument) = (camera.inner, instrument.inner);
             Ok(py.detach(|| Roi::for_workspace(&camera, &instrument, &poses.inner, margin_px))?.into())
         }
@@ -141,7 +145,8 @@ serde_class!(
 
         /// Checks that the region is not empty and lies inside a
         /// `width × height` image; raises `RangeError`.
-        fn check_within(&self, width: u32, height: u32) -> Result<()> {
+        fn check_within(&self, width: Int, height: Int) -> Result<()> {
+            let (width, height) = (unsigned("width", width)?, unsigned("height", height)?);
             Ok(self.inner.check_within(width, height)?)
         }
 
@@ -216,12 +221,14 @@ serde_class!(
         }
 
         /// `nominal` as built, its links drawn with `seed`.
-        fn instrument(&self, nominal: PyRef<'_, PyInstrument>, seed: u64) -> Result<PyBuiltInstrument> {
+        fn instrument(&self, nominal: PyRef<'_, PyInstrument>, seed: Int) -> Result<PyBuiltInstrument> {
+            let seed = unsigned("seed", seed)?;
             Ok(PyBuiltInstrument { inner: self.inner.instrument(&nominal.inner, seed)? })
         }
 
         /// `nominal` as mounted and calibrated, drawn with `seed`.
-        fn camera(&self, nominal: PyRef<'_, PyCamera>, seed: u64) -> Result<PyCamera> {
+        fn camera(&self, nominal: PyRef<'_, PyCamera>, seed: Int) -> Result<PyCamera> {
+            let seed = unsigned("seed", seed)?;
             Ok(PyCamera { inner: self.inner.camera(&nominal.inner, seed)? })
         }
     }
@@ -369,9 +376,10 @@ impl PyInstrument {
     fn py_new(
         joint: PyJointParams,
         params: PyInstrumentParams,
-        n_segments: u32,
+        n_segments: Int,
         translation: PyTranslationParams,
     ) -> Result<Self> {
+        let n_segments = unsigned("n_segments", n_segments)?;
         Ok(Self {
             inner: Instrument::new(joint.inner, params.inner, n_segments, translation.inner)?,
         })

@@ -12,7 +12,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::array;
-use crate::error::{Error, Result};
+use crate::error::{Error, Int, Result, unsigned};
 use crate::models::PyKbjae;
 use crate::plant::PyPlant;
 use crate::retrieval::PyLbhjae;
@@ -31,9 +31,9 @@ pub struct PyNoisyTruth {
 impl PyNoisyTruth {
     #[new]
     #[pyo3(signature = (sigma_deg, seed = 0))]
-    fn py_new(sigma_deg: f64, seed: u64) -> Result<Self> {
+    fn py_new(sigma_deg: f64, seed: Int) -> Result<Self> {
         Ok(Self {
-            inner: NoisyTruth::new(sigma_deg, seed)?,
+            inner: NoisyTruth::new(sigma_deg, unsigned("seed", seed)?)?,
         })
     }
 }
@@ -60,9 +60,10 @@ serde_class!(
             py: Python<'_>,
             mut plant: PyRefMut<'_, PyPlant>,
             estimator: &Bound<'_, PyAny>,
-            seed: u64,
+            seed: Int,
             mcap_path: Option<PathBuf>,
         ) -> Result<PyClosedLoopTrace> {
+            let seed: u64 = unsigned("seed", seed)?;
             let scenario = self.inner.clone();
             let plant = &mut plant.inner;
             // the estimator's borrow lives in one of these for the run (a

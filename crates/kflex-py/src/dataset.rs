@@ -13,7 +13,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use serde::Serialize;
 
-use crate::error::Result;
+use crate::error::{Int, Result, unsigned};
 use crate::value::{self, serde_class};
 
 /// Side of IBJAE's silhouettes, px.
@@ -48,7 +48,8 @@ serde_class!(
         /// `amplitude_deg`, `frequency_hz` (float64), `train` (bool), `seed`
         /// (uint64), one per set; and the data set's card (a `dict`).
         #[pyo3(signature = (threads = 0))]
-        fn generate<'py>(&self, py: Python<'py>, threads: usize) -> Result<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
+        fn generate<'py>(&self, py: Python<'py>, threads: Int) -> Result<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
+            let threads = unsigned("threads", threads)?;
             let config = self.inner.clone();
             let data = py.detach(|| config.generate(threads))?;
             kinematic_arrays(py, data)
@@ -80,7 +81,8 @@ serde_class!(
         /// `theta_b_deg`, `translation_b_mm`, `theta_r_deg`,
         /// `translation_r_mm` (float64); and the card (a `dict`).
         #[pyo3(signature = (threads = 0))]
-        fn generate<'py>(&self, py: Python<'py>, threads: usize) -> Result<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
+        fn generate<'py>(&self, py: Python<'py>, threads: Int) -> Result<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
+            let threads = unsigned("threads", threads)?;
             let config = self.inner.clone();
             let pairs = py.detach(|| config.generate(threads))?;
             pair_arrays(py, pairs)
@@ -91,7 +93,8 @@ serde_class!(
         /// card)`: `masks` (bool, entries × 48 × 48), `theta_deg`,
         /// `translation_mm` (float64), `band` (int64); and the card.
         #[pyo3(signature = (threads = 0))]
-        fn database<'py>(&self, py: Python<'py>, threads: usize) -> Result<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
+        fn database<'py>(&self, py: Python<'py>, threads: Int) -> Result<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
+            let threads = unsigned("threads", threads)?;
             let config = self.inner.clone();
             let db = py.detach(|| config.database(threads))?;
             database_arrays(py, db)

@@ -3,6 +3,7 @@
 //! | Rust error | Python exception |
 //! |---|---|
 //! | a [`RangeError`] (`OutOfRange`, `OutOfWorkspace`, in any crate) | [`RangeError`](PyRangeError), a `ValueError` carrying `name`, `value`, `min`, `max`, `min_inclusive`, `max_inclusive` |
+//! | a negative or too-large int for a count, size or seed (an argument Rust takes as unsigned; [`unsigned`]) | `ValueError` naming the argument, its value and the range |
 //! | other bad values (non-finite input, unreachable tendon length, unknown background or tissue, a metric's bad series, a field value serde refuses) | `ValueError` |
 //! | a buffer of the wrong size, a field of the wrong type, an unknown field | `TypeError` |
 //! | no instrument in a frame | [`NoInstrumentError`](PyNoInstrumentError), a `RuntimeError` (`Segmenter.segment` returns `None` instead) |
@@ -244,6 +245,44 @@ pub(crate) fn value_error(msg: impl Into<String>) -> Error {
     Error::Py(PyValueError::new_err(msg.into()))
 }
 
+/// A Python `int` argument that Rust takes as unsigned (a count, a size, a
+/// seed), as the signature takes it: wide enough that a negative or
+/// too-large value reaches the body, where [`unsigned`] converts it and
+/// names it in the error. (Taken as `u32` itself, pyo3 would raise a bare
+/// `OverflowError` that names neither.) Non-ints still raise pyo3's
+/// `TypeError`; a bool is 0 or 1. An int beyond ±2**127 still raises pyo3's
+/// `OverflowError`, the argument named only in the exception's note
+/// ("while processing 'seed'").
+pub(crate) type Int = i128;
+
+/// The unsigned types an [`Int`] converts to, with their largest value.
+pub(crate) trait Unsigned: TryFrom<Int> {
+    /// The largest value, for the error message.
+    const MAX: u128;
+}
+
+macro_rules! unsigned_types {
+    ($($t:ty),*) => {
+        $(impl Unsigned for $t {
+            const MAX: u128 = <$t>::MAX as u128;
+        })*
+    };
+}
+unsigned_types!(u8, u16, u32, u64, usize);
+
+/// `value`, the Python argument `name`, as the unsigned type `T`. Raises
+/// `ValueError` outside `T`'s range, e.g. "width = -1: must be a whole
+/// number from 0 to 4294967295". Checks of its own after the conversion (a
+/// size of 0 refused, say) stay the wrapped function's.
+pub(crate) fn unsigned<T: Unsigned>(name: &str, value: Int) -> Result<T> {
+    T::try_from(value).map_err(|_| {
+        value_error(format!(
+            "{name} = {value}: must be a whole number from 0 to {}",
+            T::MAX
+        ))
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -251,6 +290,24 @@ mod tests {
 
     fn range() -> RangeError {
         Bounds::open(0.0, 1e3).check("dt_s", -1.0).unwrap_err()
+    }
+
+    #[test]
+    fn unsigned_takes_exactly_the_types_range() {
+        assert!(matches!(unsigned::<u32>("width", 0), Ok(0)));
+        assert!(matches!(
+            unsigned::<u32>("width", 4_294_967_295),
+            Ok(u32::MAX)
+        ));
+        assert!(unsigned::<u32>("width", 4_294_967_296).is_err());
+        assert!(unsigned::<u32>("width", -1).is_err());
+        assert!(matches!(
+            unsigned::<u64>("seed", (1 << 64) - 1),
+            Ok(u64::MAX)
+        ));
+        assert!(unsigned::<u64>("seed", 1 << 64).is_err());
+        assert!(unsigned::<usize>("threads", -1).is_err());
+        assert_eq!(<u64 as Unsigned>::MAX, u128::from(u64::MAX));
     }
 
     #[test]

@@ -16,7 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::array;
-use crate::error::{Error, Result};
+use crate::error::{Error, Int, Result, unsigned};
 use crate::value::serde_class;
 
 serde_class!(
@@ -202,12 +202,13 @@ pub fn run_experiment<'py>(
     py: Python<'py>,
     grid: &Bound<'py, PyAny>,
     models: Option<PathBuf>,
-    jobs: Option<usize>,
+    jobs: Option<Int>,
     time_series: bool,
     mcap_dir: Option<PathBuf>,
     mcap_frames: bool,
     details: bool,
 ) -> Result<Bound<'py, PyDict>> {
+    let jobs: Option<usize> = jobs.map(|j| unsigned("jobs", j)).transpose()?;
     let mut grid: ExperimentGrid = if let Ok(g) = grid.extract::<PyExperimentGrid>() {
         g.inner
     } else if let Ok(path) = grid.extract::<PathBuf>() {

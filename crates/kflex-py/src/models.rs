@@ -13,7 +13,7 @@ use numpy::ndarray::Array2;
 use pyo3::prelude::*;
 
 use crate::array;
-use crate::error::Result;
+use crate::error::{Int, Result, unsigned};
 
 /// Locks `m` (the thread waits without the interpreter lock, so that the
 /// thread holding `m` can finish and hand back its result); a lock whose
@@ -157,7 +157,8 @@ impl PyScnn {
     /// Raises as `Kbjae.load`.
     #[staticmethod]
     #[pyo3(signature = (path, threads = 1))]
-    fn load(py: Python<'_>, path: PathBuf, threads: usize) -> Result<Self> {
+    fn load(py: Python<'_>, path: PathBuf, threads: Int) -> Result<Self> {
+        let threads: usize = unsigned("threads", threads)?;
         let scnn = py.detach(|| Scnn::load(&path, threads))?;
         Ok(Self {
             sha256: scnn.sha256().to_owned(),

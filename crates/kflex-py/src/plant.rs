@@ -10,7 +10,7 @@ use pyo3::types::PyDict;
 use serde_json::Value;
 
 use crate::array;
-use crate::error::Result;
+use crate::error::{Int, Result, unsigned};
 use crate::value::{self, serde_class};
 
 serde_class!(
@@ -229,7 +229,8 @@ pub struct PyPlantConfig {
     #[pyo3(get, set)]
     noise: Option<Py<PyAuroraNoise>>,
     /// Seed of the measurement noise.
-    #[pyo3(get, set)]
+    // set through `set_seed`, which names a negative or too-large one
+    #[pyo3(get)]
     seed: u64,
 }
 
@@ -283,6 +284,12 @@ impl PyPlantConfig {
         Ok(Self::from_rust(py, c)?)
     }
 
+    #[setter]
+    fn set_seed(&mut self, seed: Int) -> Result<()> {
+        self.seed = unsigned("seed", seed)?;
+        Ok(())
+    }
+
     /// Which joint model computes the angle: `"analytic"` (the module's
     /// build has only this one) or `"rapier"`.
     #[getter]
@@ -313,8 +320,10 @@ impl PyPlantConfig {
     /// seating, which homes the drive within the middle 70 % of its play);
     /// deterministic in `seed`. Raises
     /// `RangeError` for `rel_std` outside [0, 0.5] or a parameter out of range.
-    fn perturbed(&self, py: Python<'_>, seed: u64, rel_std: f64) -> Result<Self> {
-        let c = self.to_rust(py).perturbed(seed, rel_std)?;
+    fn perturbed(&self, py: Python<'_>, seed: Int, rel_std: f64) -> Result<Self> {
+        let c = self
+            .to_rust(py)
+            .perturbed(unsigned("seed", seed)?, rel_std)?;
         Ok(Self::from_rust(py, c)?)
     }
 

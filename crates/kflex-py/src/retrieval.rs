@@ -18,7 +18,7 @@ use pyo3::types::PyDict;
 
 use crate::array;
 use crate::camera::{PyCamera, PyInstrument, PyWorkingBand};
-use crate::error::{Result, type_error, value_error};
+use crate::error::{Int, Result, type_error, unsigned, value_error};
 use crate::fusion::{self, PyAdaptiveParams, PyEstimate, PyKalmanParams};
 use crate::models::PyScnn;
 use crate::segment::PySegmentParams;
@@ -137,7 +137,7 @@ impl PyFeatureIndex {
         features: &Bound<'_, PyAny>,
         theta_deg: &Bound<'_, PyAny>,
         translation_mm: Option<&Bound<'_, PyAny>>,
-        projection_dims: usize,
+        projection_dims: Int,
         search: &str,
     ) -> Result<Self> {
         let search = match search {
@@ -165,11 +165,15 @@ impl PyFeatureIndex {
             })
             .collect();
         let params = IndexParams {
-            projection_dims: ProjectionDims::from_count(projection_dims).ok_or_else(|| {
-                value_error(format!(
-                    "projection_dims = {projection_dims}: must be 8, 12 or 16"
-                ))
-            })?,
+            // a negative or too-large int is refused as any other count
+            projection_dims: usize::try_from(projection_dims)
+                .ok()
+                .and_then(ProjectionDims::from_count)
+                .ok_or_else(|| {
+                    value_error(format!(
+                        "projection_dims = {projection_dims}: must be 8, 12 or 16"
+                    ))
+                })?,
             search,
         };
         Ok(Self {
@@ -521,14 +525,21 @@ impl PyIbjae {
         scnn: PathBuf,
         databases: Vec<PyRef<'_, PyFeatureIndex>>,
         segment: Option<PySegmentParams>,
-        threads: usize,
+        threads: Int,
         camera: Option<PyRef<'_, PyCamera>>,
         instrument: Option<PyRef<'_, PyInstrument>>,
         min_silhouette_iou: Option<f64>,
     ) -> Result<Self> {
         let check = CheckArgs::new(camera, instrument, min_silhouette_iou);
         Ok(Self {
-            inner: load_ibjae(py, scnn, &databases, segment, threads, check)?,
+            inner: load_ibjae(
+                py,
+                scnn,
+                &databases,
+                segment,
+                unsigned("threads", threads)?,
+                check,
+            )?,
         })
     }
 
@@ -559,8 +570,13 @@ impl PyIbjae {
         &mut self,
         py: Python<'_>,
         rgb: &Bound<'_, PyAny>,
-        bands: Vec<usize>,
+        bands: Vec<Int>,
     ) -> Result<Option<PyIbjaeReading>> {
+        let bands = bands
+            .into_iter()
+            .enumerate()
+            .map(|(i, band)| unsigned(&format!("bands[{i}]"), band))
+            .collect::<Result<Vec<usize>>>()?;
         let (rgb, width, height) = array::rgb(rgb)?;
         let ibjae = &mut self.inner;
         let reading = py.detach(|| ibjae.read(&RgbView::packed(&rgb, width, height)?, &bands))?;
