@@ -31,11 +31,13 @@ pub fn estimator(name: &str) -> Result<EstimatorKind> {
 }
 
 /// Reads a scenario file (TOML: the fields of `ExperimentGrid`; what it
-/// leaves out keeps the paper's grid).
-pub fn load(path: &Path) -> Result<ExperimentGrid> {
+/// leaves out keeps the paper's grid), and its text.
+pub fn load(path: &Path) -> Result<(ExperimentGrid, String)> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    toml::from_str(&text).with_context(|| format!("parsing the scenario {}", path.display()))
+    let grid = toml::from_str(&text)
+        .with_context(|| format!("parsing the scenario {}", path.display()))?;
+    Ok((grid, text))
 }
 
 /// How a scenario runs.
@@ -152,7 +154,7 @@ pub fn run(
             kflex_control::MAX_REPEATS
         );
     }
-    let mut grid = load(path)?;
+    let (mut grid, text) = load(path)?;
     let file = (grid.seed, grid.repeats, grid.estimators.clone());
     only.apply(&mut grid)?;
     if quick {
@@ -188,6 +190,12 @@ pub fn run(
     }
     // frames are kept only for the logs
     grid.scenario.record_frames = logs_wanted && (mcap_frames || grid.scenario.record_frames);
+    // every setting checked before any work; a value out of range that the
+    // file set is named with its line
+    grid.validate().map_err(|e| match e.line_in(&text) {
+        Some(line) => anyhow::anyhow!("{}, line {line}: {e}", path.display()),
+        None => anyhow::Error::new(e).context(format!("the scenario {}", path.display())),
+    })?;
     // the runs render through the nominal camera (the databases' own)
     let camera = Camera::default();
     let make = |kind| models.make(kind, &camera);

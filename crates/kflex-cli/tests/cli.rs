@@ -653,6 +653,49 @@ fn scenario_file(dir: &Path) -> PathBuf {
     path
 }
 
+/// A value out of range in a scenario file is named with the file's line
+/// that sets it, before any work (no output folder is made).
+#[test]
+fn a_value_out_of_range_names_its_line_in_the_scenario() {
+    let dir = scratch("range-line");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("bad.toml");
+    let out = dir.join("out");
+    let scenario = |repeats: &str, sheath: &str, periods: &str| {
+        format!(
+            "repeats = {repeats}\n[[cases]]\ntable = \"IX\"\nkind = \"compensation\"\n\
+             sheath_deg = {sheath}\nocclusion = \"0%\"\n[scenario.motion]\nperiods = {periods} # one\n"
+        )
+    };
+    for (text, needle) in [
+        (
+            scenario("0", "90.0", "1.0"),
+            "bad.toml, line 1: repeats = 0",
+        ),
+        (
+            scenario("1", "90.0", "-1.0"),
+            "bad.toml, line 8: periods = -1",
+        ),
+        (
+            scenario("1", "50_000.0", "1.0"),
+            "bad.toml, line 5: case 1 (IX_50000deg_0pct): sheath_deg = 50000",
+        ),
+    ] {
+        std::fs::write(&file, text).unwrap();
+        let args = [
+            "run",
+            "--scenario",
+            file.to_str().unwrap(),
+            "--estimators",
+            "none",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        assert_refused(&args, needle);
+        assert!(!out.exists(), "{} made", out.display());
+    }
+}
+
 /// A rerun into the same folder says which logs and figures there are not
 /// its own (an earlier run's, of other cases), and leaves them.
 #[test]

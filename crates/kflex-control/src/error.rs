@@ -134,6 +134,43 @@ impl ControlError {
             _ => None,
         }
     }
+
+    /// The line (counted from 1) of a TOML file's `text` that sets the
+    /// value this error finds out of range: the one line of the form
+    /// `key = value` with the error's field as its key and the error's
+    /// value as its value. `None` for another error, or where no line or
+    /// more than one fits (a value written inline, or one a program set).
+    ///
+    /// ```
+    /// use kflex_control::ExperimentGrid;
+    /// let text = "repeats = 0\n[scenario.motion]\nperiods = 1.0\n";
+    /// let grid: ExperimentGrid = toml::from_str(text).unwrap();
+    /// let e = grid.validate().unwrap_err();
+    /// assert_eq!(e.line_in(text), Some(1));
+    /// ```
+    #[must_use]
+    pub fn line_in(&self, text: &str) -> Option<usize> {
+        let range = self.range()?;
+        // "periods", or the last part of a dotted name ("lens.division")
+        let key = range.name.split_whitespace().next()?.rsplit('.').next()?;
+        let mut lines = text.lines().enumerate().filter(|(_, line)| {
+            let Some(rest) = line.trim_start().strip_prefix(key) else {
+                return false;
+            };
+            let Some(value) = rest.trim_start().strip_prefix('=') else {
+                return false;
+            };
+            let value = value
+                .split('#')
+                .next()
+                .unwrap_or("")
+                .trim()
+                .replace('_', "");
+            value.parse::<f64>().ok() == Some(range.value)
+        });
+        let (at, _) = lines.next()?;
+        lines.next().is_none().then_some(at + 1)
+    }
 }
 
 /// Result alias for this crate.

@@ -198,6 +198,20 @@ pub(crate) fn message(e: &Error) -> String {
 impl From<Error> for PyErr {
     fn from(e: Error) -> Self {
         let msg = message(&e);
+        to_py(e, msg)
+    }
+}
+
+/// `e` as its Python exception, the message prefixed with `at` (a file and
+/// line, say: `"scenario.toml, line 3"`), its class and attributes as ever.
+pub(crate) fn located(e: Error, at: &str) -> PyErr {
+    let msg = format!("{at}: {}", message(&e));
+    to_py(e, msg)
+}
+
+/// `e` as its Python exception with the message `msg`.
+fn to_py(e: Error, msg: String) -> PyErr {
+    {
         match classify(&e) {
             None => match e {
                 Error::Py(p) => p,

@@ -37,7 +37,9 @@ serde_class!(
 
         /// A scenario file (TOML, as those in `assets/scenarios/`). Raises
         /// `OSError` when it cannot be read, `ValueError` naming the file,
-        /// the line and the field for one that is not a grid.
+        /// the line and the field for one that is not a grid, and
+        /// `kflex.RangeError` (a `ValueError`) naming the file, the line
+        /// and the field for a value out of range.
         #[staticmethod]
         fn load(path: PathBuf) -> Result<Self> {
             let text = std::fs::read_to_string(&path).map_err(|e| {
@@ -52,6 +54,15 @@ serde_class!(
                     path.display()
                 )))
             })?;
+            // every setting checked now; a value out of range is named with
+            // the file's line that sets it
+            if let Err(e) = grid.validate() {
+                let at = match e.line_in(&text) {
+                    Some(line) => format!("{}, line {line}", path.display()),
+                    None => path.display().to_string(),
+                };
+                return Err(Error::Py(crate::error::located(e.into(), &at)));
+            }
             Ok(grid.into())
         }
 
