@@ -360,6 +360,13 @@ def test_the_index_refuses_bad_input() -> None:
         kflex.FeatureIndex.build(features, theta, 0.0, projection_dims=5)
     with pytest.raises(ValueError, match="search"):
         kflex.FeatureIndex.build(features, theta, 0.0, search="kd")
+    # a finite float64 beyond float32 is named as given, not as infinity
+    big = features.astype(np.float64)
+    big[3, 2] = 1e308
+    with pytest.raises(ValueError, match=r"features\[3, 2\] = 1e308 does not fit float32"):
+        kflex.FeatureIndex.build(big, theta)
+    with pytest.raises(ValueError, match=r"query\[1\] = -1e300 does not fit float32"):
+        index.nearest(np.array([0, -1e300, 0, 0, 0, 0, 0, 0], np.float64))
     many = np.random.default_rng(3).random((2049, 4), dtype=np.float32)
     with pytest.raises(ValueError, match="Search::Scan"):
         kflex.FeatureIndex.build(many, np.zeros(2049), search="scan")

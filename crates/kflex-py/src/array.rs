@@ -260,7 +260,21 @@ pub(crate) fn rows_f32(
     let a: ArrayD<f32> = if let Ok(a) = obj.cast::<PyArrayDyn<f32>>() {
         a.readonly().as_array().to_owned()
     } else if let Ok(a) = obj.cast::<PyArrayDyn<f64>>() {
-        a.readonly().as_array().mapv(|x| x as f32)
+        let view = a.readonly();
+        let view = view.as_array();
+        // a finite float64 that float32 cannot hold is named as given, not
+        // as the infinity it would round to
+        if let Some((at, v)) = view
+            .indexed_iter()
+            .find(|(_, v)| v.is_finite() && v.abs() > f64::from(f32::MAX))
+        {
+            return Err(crate::error::value_error(format!(
+                "{name}{:?} = {v:e} does not fit float32 (largest magnitude {:e})",
+                numpy::ndarray::Dimension::slice(&at),
+                f32::MAX
+            )));
+        }
+        view.mapv(|x| x as f32)
     } else {
         return Err(wrong_dtype(name, "a float32 or float64 array", obj));
     };
