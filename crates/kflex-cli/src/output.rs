@@ -83,20 +83,12 @@ pub(crate) fn make_dirs(dir: &Path) -> std::io::Result<()> {
                 }
             }
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && p.is_dir() => {}
-            // a file where a folder must go: say so ("File exists" does not)
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                return Err(std::io::Error::new(
-                    std::io::ErrorKind::NotADirectory,
-                    format!("{} is a file, not a folder", p.display()),
-                ));
-            }
+            // a file where a folder must go, this one or one above: say so
+            // ("File exists" and "Not a directory" do not say which)
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => return Err(not_a_folder(p)),
             Err(e) if e.kind() == std::io::ErrorKind::NotADirectory => {
-                let file = p.ancestors().skip(1).find(|a| a.is_file());
-                return Err(match file {
-                    Some(f) => std::io::Error::new(
-                        std::io::ErrorKind::NotADirectory,
-                        format!("{} is a file, not a folder", f.display()),
-                    ),
+                return Err(match p.ancestors().skip(1).find(|a| a.is_file()) {
+                    Some(file) => not_a_folder(file),
                     None => e,
                 });
             }
@@ -104,6 +96,14 @@ pub(crate) fn make_dirs(dir: &Path) -> std::io::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The error for a file at `path` where a folder must go.
+fn not_a_folder(path: &Path) -> std::io::Error {
+    std::io::Error::new(
+        std::io::ErrorKind::NotADirectory,
+        format!("{} is a file, not a folder", path.display()),
+    )
 }
 
 /// Removes the folders [`make_dirs`] made that are still empty,
