@@ -119,6 +119,19 @@ pub enum EstimateError {
          them; a model directory keeps them in db/)"
     )]
     NoBandDatabase,
+    /// A frame at a translation that lies within the span of IBJAE's
+    /// databases but in no band of theirs (databases chosen with a gap).
+    #[error(
+        "translation_mm = {} lies in no band of IBJAE's databases (they hold the \
+         translations {held} mm): give the databases of that translation",
+        kflex_model::Num(*.translation_mm)
+    )]
+    NoBand {
+        /// The translation asked for, mm.
+        translation_mm: f64,
+        /// The translations the databases hold, as text.
+        held: String,
+    },
     /// Reading or writing a file failed (missing, no permission, disk full).
     /// `kind` tells a missing file ([`std::io::ErrorKind::NotFound`]) from the rest.
     #[error("{}: {message}", .path.display())]

@@ -1,9 +1,9 @@
 //! LBHJAE: KBJAE and IBJAE fused by a Kalman filter, as one estimator a
 //! controller steps once per tick (cargo features `onnx` and `index`).
 
-use kflex_model::{Bounds, Command, Roi};
+use kflex_model::{Bounds, Command, Num, Roi};
 
-use crate::error::Result;
+use crate::error::{EstimateError, Result};
 use crate::fusion::{Estimate, Fusion, Measurements};
 use crate::ibjae::{FrameReads, Ibjae, IbjaeReading, RgbView};
 use crate::kbjae::Kbjae;
@@ -103,9 +103,11 @@ impl Lbhjae {
     ///
     /// # Errors
     /// A non-finite command or a bad `dt_s`; with a frame, a translation no
-    /// database of IBJAE holds ([`crate::EstimateError::OutOfRange`] naming
-    /// `translation_mm` and the databases' span); a frame whose regions do
-    /// not fit it; faults of the models. The estimator is then unchanged. A frame
+    /// database of IBJAE holds ([`EstimateError::OutOfRange`] naming
+    /// `translation_mm` and the databases' span, or
+    /// [`EstimateError::NoBand`] for one in a gap between their bands); a
+    /// frame whose regions do not fit it; faults of the models. The
+    /// estimator is then unchanged. A frame
     /// with no instrument in it is no error: IBJAE's reading is missing.
     pub fn step(
         &mut self,
@@ -177,7 +179,7 @@ impl Lbhjae {
                 if self.bands.is_empty() {
                     // no database holds the translation: an error, not a
                     // fusion that quietly goes on without IBJAE
-                    self.check_translation(command.translation_mm)?;
+                    return Err(self.no_band_error(command.translation_mm));
                 }
                 match reads {
                     Some(reads) => self.ibjae.read_sharing(frame, &self.bands, reads)?,
@@ -210,22 +212,43 @@ impl Lbhjae {
         Ok(estimate)
     }
 
-    /// Checks `translation_mm` lies within the translations of IBJAE's
-    /// databases (the span of their bands').
-    fn check_translation(&self, translation_mm: f64) -> Result<()> {
-        let (lo, hi) =
-            self.ibjae
-                .bands()
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| {
-                    let [d0, d1] = b.band.poses.translation_mm;
-                    (lo.min(d0), hi.max(d1))
-                });
-        Bounds::closed(lo, hi).check(
+    /// The error for a translation no database of IBJAE holds: out of the
+    /// span of their bands, or in a gap between them (databases chosen
+    /// by hand), naming the translations they hold.
+    fn no_band_error(&self, translation_mm: f64) -> EstimateError {
+        let mut held: Vec<[f64; 2]> = self
+            .ibjae
+            .bands()
+            .iter()
+            .map(|b| b.band.poses.translation_mm)
+            .collect();
+        held.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+        held.dedup();
+        let (lo, hi) = held
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), [d0, d1]| {
+                (lo.min(*d0), hi.max(*d1))
+            });
+        if let Err(e) = Bounds::closed(lo, hi).check(
             "translation_mm (the translations IBJAE's databases hold)",
             translation_mm,
-        )?;
-        Ok(())
+        ) {
+            return e.into();
+        }
+        let spans: Vec<String> = held
+            .iter()
+            .map(|[d0, d1]| {
+                if d0 == d1 {
+                    format!("{}", Num(*d0))
+                } else {
+                    format!("[{}, {}]", Num(*d0), Num(*d1))
+                }
+            })
+            .collect();
+        EstimateError::NoBand {
+            translation_mm,
+            held: spans.join(", "),
+        }
     }
 
     /// Back to the start: no command history, the filter at its initial state.

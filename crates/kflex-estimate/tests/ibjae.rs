@@ -897,3 +897,58 @@ fn image_sizes_that_overflow_are_refused() {
     ));
     assert!(s.segment(&bytes, u32::MAX, u32::MAX, roi).is_err());
 }
+
+/// Databases chosen with a gap between their translations: a frame in the
+/// gap is an error naming what they hold, as one past them is, never a
+/// fusion that quietly goes on without IBJAE.
+#[test]
+fn lbhjae_refuses_a_frame_at_a_translation_no_database_holds() {
+    use kflex_model::{PoseRange, WorkingBand};
+    let camera = Camera::default();
+    let mut scnn = Scnn::load(&data("scnn_test.onnx"), 1).unwrap();
+    let at = |d: f64, scnn: &mut Scnn| {
+        let band = WorkingBand {
+            poses: PoseRange {
+                theta_deg: [0.0, 50.0],
+                translation_mm: [d, d],
+            },
+            roi: paper_band(&camera).roi,
+        };
+        build_band_database(scnn, &camera, &Instrument::kflex(), &band, 5.0, 1.0).unwrap()
+    };
+    let bands = vec![at(10.0, &mut scnn), at(20.0, &mut scnn)];
+    let ibjae = Ibjae::new(scnn, SegmentParams::default(), bands).unwrap();
+    let kbjae = Kbjae::load(&data("kbjae_test.onnx")).unwrap();
+    let fusion: Box<dyn Fusion + Send> =
+        Box::new(AdaptiveKalman::new(AdaptiveParams::default()).unwrap());
+    let mut lbhjae = Lbhjae::new(kbjae, ibjae, fusion);
+    let shape = Instrument::kflex().shape(20.0, 10.0).unwrap();
+    let f = SceneRenderer::new()
+        .render(&camera, &shape, &FrameParams::default())
+        .unwrap();
+    let view = RgbView::packed(&f.rgb, f.width, f.height).unwrap();
+    let before = format!("{lbhjae:?}");
+    let step = |lbhjae: &mut Lbhjae, d: f64| {
+        let command = Command {
+            theta_c_deg: 20.0,
+            translation_mm: d,
+        };
+        lbhjae.step(command, 0.01, Some(&view))
+    };
+    match step(&mut lbhjae, 15.0) {
+        Err(e @ EstimateError::NoBand { .. }) => {
+            assert!(e.to_string().contains("10, 20"), "{e}");
+        }
+        other => panic!("{other:?}"),
+    }
+    match step(&mut lbhjae, 25.0) {
+        Err(EstimateError::OutOfRange(r)) => {
+            assert_eq!((r.value, r.bounds.min, r.bounds.max), (25.0, 10.0, 20.0));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(format!("{lbhjae:?}"), before);
+    // at a translation a database holds, a reading
+    let e = step(&mut lbhjae, 10.0).unwrap();
+    assert!(e.ibjae.is_some());
+}

@@ -217,7 +217,8 @@ fn every_size_is_exact_and_auto_picks_by_size() {
     let max = Search::SCAN_MAX_POINTS;
     for (n, chosen) in [(max, Search::Scan), (max + 1, Search::Tree)] {
         let features = random_points(n, 4, 1.0, &mut r);
-        let index = FeatureIndex::build(&features, 4, &poses(n), IndexParams::default()).unwrap();
+        let mut index =
+            FeatureIndex::build(&features, 4, &poses(n), IndexParams::default()).unwrap();
         assert_eq!(index.search_method(), chosen, "{n} points");
         assert_exact(&index, &random_points(200, 4, 1.0, &mut r), "random");
         // the other way gives the same answers, where it is allowed
@@ -225,14 +226,17 @@ fn every_size_is_exact_and_auto_picks_by_size() {
             Search::Scan => Search::Tree,
             _ => Search::Scan,
         };
-        match index.with_search(other) {
-            Ok(index) => {
+        match index.set_search(other) {
+            Ok(()) => {
                 assert_eq!(index.search_method(), other);
                 assert_exact(&index, &random_points(200, 4, 1.0, &mut r), "random");
             }
             Err(EstimateError::OutOfRange(e)) => {
                 assert_eq!(n, max + 1);
-                assert!(e.to_string().contains("Search::Scan"), "{e}");
+                assert!(e.to_string().contains("searched by scan"), "{e}");
+                // refused, the index searches as before
+                assert_eq!(index.search_method(), chosen);
+                assert_exact(&index, &random_points(50, 4, 1.0, &mut r), "random");
             }
             Err(e) => panic!("{e}"),
         }

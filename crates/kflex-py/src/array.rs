@@ -251,29 +251,25 @@ fn wrong_dtype(name: &str, what: &str, obj: &Bound<'_, PyAny>) -> crate::error::
 /// row when `one_row_ok`.
 ///
 /// # Errors
-/// `TypeError` naming `name`, the shape and dtype expected and given.
+/// `TypeError` naming `name`, the shape and dtype expected and given;
+/// `ValueError` naming the element of a finite float64 that rounds to
+/// infinity in float32.
 pub(crate) fn rows_f32(
     name: &str,
     obj: &Bound<'_, PyAny>,
     one_row_ok: bool,
 ) -> Result<(Vec<f32>, usize, usize)> {
+    // a finite float64 that float32 cannot hold, named after the shape check
+    let mut too_big = None;
     let a: ArrayD<f32> = if let Ok(a) = obj.cast::<PyArrayDyn<f32>>() {
         a.readonly().as_array().to_owned()
     } else if let Ok(a) = obj.cast::<PyArrayDyn<f64>>() {
         let view = a.readonly();
         let view = view.as_array();
-        // a finite float64 that float32 cannot hold is named as given, not
-        // as the infinity it would round to
-        if let Some((at, v)) = view
+        too_big = view
             .indexed_iter()
-            .find(|(_, v)| v.is_finite() && v.abs() > f64::from(f32::MAX))
-        {
-            return Err(crate::error::value_error(format!(
-                "{name}{:?} = {v:e} does not fit float32 (largest magnitude {:e})",
-                numpy::ndarray::Dimension::slice(&at),
-                f32::MAX
-            )));
-        }
+            .find(|(_, v)| v.is_finite() && (**v as f32).is_infinite())
+            .map(|(at, v)| (numpy::ndarray::Dimension::slice(&at).to_vec(), *v));
         view.mapv(|x| x as f32)
     } else {
         return Err(wrong_dtype(name, "a float32 or float64 array", obj));
@@ -288,6 +284,13 @@ pub(crate) fn rows_f32(
             )));
         }
     };
+    // named as given, not as the infinity it would round to
+    if let Some((at, v)) = too_big {
+        return Err(crate::error::value_error(format!(
+            "{name}{at:?} = {v:e} does not fit float32 (largest magnitude {:e})",
+            f32::MAX
+        )));
+    }
     Ok((a.iter().copied().collect(), rows, cols))
 }
 

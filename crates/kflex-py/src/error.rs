@@ -147,7 +147,8 @@ fn classify_estimate(e: &EstimateError) -> Kind {
         | EstimateError::IndexVersion { .. }
         | EstimateError::NonFinite { .. }
         | EstimateError::EmptyIndex
-        | EstimateError::NoBandDatabase => Kind::Value,
+        | EstimateError::NoBandDatabase
+        | EstimateError::NoBand { .. } => Kind::Value,
         _ => Kind::Runtime,
     }
 }
@@ -427,6 +428,13 @@ mod tests {
                 Kind::Range(range()),
             ),
             (Error::Estimate(EstimateError::NoBandDatabase), Kind::Value),
+            (
+                Error::Estimate(EstimateError::NoBand {
+                    translation_mm: 15.0,
+                    held: "10, 20".into(),
+                }),
+                Kind::Value,
+            ),
             (
                 Error::Serde("invalid type: string \"a\", expected f64".into()),
                 Kind::Type,

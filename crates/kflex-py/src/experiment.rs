@@ -37,33 +37,12 @@ serde_class!(
 
         /// A scenario file (TOML, as those in `assets/scenarios/`). Raises
         /// `OSError` when it cannot be read, `ValueError` naming the file,
-        /// the line and the field for one that is not a grid, and
-        /// `kflex.RangeError` (a `ValueError`) naming the file, the line
-        /// and the field for a value out of range.
+        /// the line and the field for one that is not a grid. Its values
+        /// are checked when it runs (`run_experiment`), so that a grid can
+        /// be loaded and then completed in Python.
         #[staticmethod]
         fn load(path: PathBuf) -> Result<Self> {
-            let text = std::fs::read_to_string(&path).map_err(|e| {
-                Error::Py(pyo3::exceptions::PyOSError::new_err(format!(
-                    "{}: {e}",
-                    path.display()
-                )))
-            })?;
-            let grid: ExperimentGrid = toml::from_str(&text).map_err(|e| {
-                Error::Py(pyo3::exceptions::PyValueError::new_err(format!(
-                    "{}: {e}",
-                    path.display()
-                )))
-            })?;
-            // every setting checked now; a value out of range is named with
-            // the file's line that sets it
-            if let Err(e) = grid.validate() {
-                let at = match e.line_in(&text) {
-                    Some(line) => format!("{}, line {line}", path.display()),
-                    None => path.display().to_string(),
-                };
-                return Err(Error::Py(crate::error::located(e.into(), &at)));
-            }
-            Ok(grid.into())
+            Ok(read_scenario(&path)?.0.into())
         }
 
         /// A reduced grid for a fast look: each table's first and last
@@ -73,6 +52,25 @@ serde_class!(
         }
     }
 );
+
+/// A scenario file's grid and text: `OSError` when it cannot be read,
+/// `ValueError` naming the file, the line and the field for one that is not
+/// a grid.
+fn read_scenario(path: &std::path::Path) -> Result<(ExperimentGrid, String)> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        Error::Py(pyo3::exceptions::PyOSError::new_err(format!(
+            "{}: {e}",
+            path.display()
+        )))
+    })?;
+    let grid: ExperimentGrid = toml::from_str(&text).map_err(|e| {
+        Error::Py(pyo3::exceptions::PyValueError::new_err(format!(
+            "{}: {e}",
+            path.display()
+        )))
+    })?;
+    Ok((grid, text))
+}
 
 /// One run's time series, kept for Python.
 struct RunSeries {
@@ -223,7 +221,17 @@ pub fn run_experiment<'py>(
     let mut grid: ExperimentGrid = if let Ok(g) = grid.extract::<PyExperimentGrid>() {
         g.inner
     } else if let Ok(path) = grid.extract::<PathBuf>() {
-        PyExperimentGrid::load(path)?.inner
+        let (grid, text) = read_scenario(&path)?;
+        // every setting checked before any work; a value out of range is
+        // named with the file's line that sets it
+        if let Err(e) = grid.validate() {
+            let at = match e.line_in(&text) {
+                Some(line) => format!("{}, line {line}", path.display()),
+                None => path.display().to_string(),
+            };
+            return Err(Error::Py(crate::error::located(e.into(), &at)));
+        }
+        grid
     } else {
         return Err(Error::Py(pyo3::exceptions::PyTypeError::new_err(format!(
             "grid must be an ExperimentGrid or the path of a scenario file, not {}",

@@ -670,7 +670,9 @@ impl PyLbhjae {
     /// `translation_mm` mm), `dt_s` after the last, and the camera's frame
     /// `rgb` (H×W×3 uint8) if one arrived. Raises `ValueError` for a
     /// non-finite command, `RangeError` for `dt_s`, `TypeError` or
-    /// `RangeError` for a frame the regions do not fit; the estimator is
+    /// `RangeError` for a frame the regions do not fit; with a frame,
+    /// `RangeError` for a translation outside those the databases hold and
+    /// `ValueError` for one in a gap between their bands; the estimator is
     /// then unchanged. Runs without the interpreter lock.
     ///
     /// `rate_deg_per_s`: KBJAE's rate input; in a compensated loop, the

@@ -201,9 +201,8 @@ impl Search {
         match self {
             Self::Auto if len <= SCAN_MAX_POINTS => Ok(Self::Scan),
             Self::Auto => Ok(Self::Tree),
-            Self::Scan if len > SCAN_MAX_POINTS => {
-                Bounds::closed(1.0, SCAN_MAX_POINTS as f64)
-                    .check("points of a scanned index (Search::Scan)", len as f64)?;
+            Self::Scan => {
+                scan::check_len(len)?;
                 Ok(Self::Scan)
             }
             other => Ok(other),
@@ -334,7 +333,8 @@ impl FeatureIndex {
     ///
     /// # Errors
     /// * [`EstimateError::OutOfRange`] for a `dim` of 0 or a component
-    ///   beyond ±[`MAX_FEATURE_ABS`];
+    ///   beyond ±[`MAX_FEATURE_ABS`], or for [`Search::Scan`] on more than
+    ///   [`Search::SCAN_MAX_POINTS`] points;
     /// * [`EstimateError::EmptyIndex`] for no features;
     /// * [`EstimateError::Length`] when `features` is not a whole number of
     ///   rows or `poses` does not have one pose per row;
@@ -426,7 +426,10 @@ impl FeatureIndex {
         }
         let tree = ProjectedTree::new(&projected, projection)?;
         let search = search.resolve(n)?;
-        let scan = (search == Search::Scan).then(|| ProjectedScan::new(&projected, dims));
+        let scan = match search {
+            Search::Scan => Some(ProjectedScan::new(&projected, projection)?),
+            _ => None,
+        };
         let bound = BoundConstants::new(&axes, dim, &features, &mean);
         Ok(Self {
             dim,
@@ -463,7 +466,7 @@ impl FeatureIndex {
         self.dim
     }
 
-    /// `K`, the principal axes the tree is built over.
+    /// `K`, the principal axes the search works in.
     #[must_use]
     pub fn projection_dims(&self) -> ProjectionDims {
         self.projection
@@ -476,28 +479,31 @@ impl FeatureIndex {
         self.search
     }
 
-    /// The same index searching by `search` (a loaded database file picks
+    /// Searches by `search` from now on (a loaded database file picks
     /// [`Search::Auto`]); the answers do not change, only their speed.
     ///
     /// # Errors
     /// [`EstimateError::OutOfRange`] for [`Search::Scan`] on more than
-    /// [`Search::SCAN_MAX_POINTS`] points.
-    pub fn with_search(mut self, search: Search) -> Result<Self> {
+    /// [`Search::SCAN_MAX_POINTS`] points; the index is then unchanged.
+    pub fn set_search(&mut self, search: Search) -> Result<()> {
         let search = search.resolve(self.len())?;
-        self.scan = (search == Search::Scan).then(|| {
-            let dims = self.projection.get();
-            let mut projected = vec![0.0_f32; self.len() * dims];
-            for (x, p) in self
-                .features
-                .chunks_exact(self.dim)
-                .zip(projected.chunks_exact_mut(dims))
-            {
-                self.kernel.project(&self.axes, &self.mean, x, p);
+        self.scan = match search {
+            Search::Scan => {
+                let dims = self.projection.get();
+                let mut projected = vec![0.0_f32; self.len() * dims];
+                for (x, p) in self
+                    .features
+                    .chunks_exact(self.dim)
+                    .zip(projected.chunks_exact_mut(dims))
+                {
+                    self.kernel.project(&self.axes, &self.mean, x, p);
+                }
+                Some(ProjectedScan::new(&projected, self.projection)?)
             }
-            ProjectedScan::new(&projected, dims)
-        });
+            _ => None,
+        };
         self.search = search;
-        Ok(self)
+        Ok(())
     }
 
     /// The features, row-major (`len() × dim()`).
@@ -558,8 +564,8 @@ impl FeatureIndex {
     }
 
     /// The exact nearest neighbour of `query` (`dim()` values): the same
-    /// point, pose and distance as [`Self::nearest_linear`], found through
-    /// the projected k-d tree.
+    /// point, pose and distance as [`Self::nearest_linear`], found in the
+    /// projected space (by scan or by k-d tree: [`Self::search_method`]).
     ///
     /// # Errors
     /// [`EstimateError::Length`] when `query` is not `dim()` long,

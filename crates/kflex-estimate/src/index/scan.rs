@@ -14,8 +14,12 @@
 
 use std::mem::MaybeUninit;
 
+use kflex_model::Bounds;
+
+use super::ProjectionDims;
 use super::kernel::Kernel;
 use super::tree::MAX_DIMS;
+use crate::error::Result;
 
 /// Points whose distances one block computes together.
 pub(crate) const BLOCK: usize = 16;
@@ -42,10 +46,18 @@ pub(crate) fn scratch() -> Scratch {
 /// never within any finite bound.
 const FAR: f32 = f32::MAX;
 
+/// Checks an index of `len` points can be scanned (at most
+/// [`SCAN_MAX_POINTS`]: the stack's room for their distances).
+pub(crate) fn check_len(len: usize) -> Result<()> {
+    Bounds::closed(1.0, SCAN_MAX_POINTS as f64)
+        .check("points of an index searched by scan", len as f64)?;
+    Ok(())
+}
+
 /// The projected points, a block of [`BLOCK`] at a time.
 pub(crate) struct ProjectedScan {
     /// `K`, the projection's width.
-    dims: usize,
+    dims: ProjectionDims,
     /// Real points.
     len: usize,
     /// Block after block, each `K` rows of [`BLOCK`] values: coordinate `k`
@@ -55,17 +67,23 @@ pub(crate) struct ProjectedScan {
 
 impl ProjectedScan {
     /// The scan over `points` (row-major, `dims` wide), point `i` being row `i`.
-    pub(crate) fn new(points: &[f32], dims: usize) -> Self {
-        let len = points.len() / dims.max(1);
+    ///
+    /// # Errors
+    /// [`crate::EstimateError::OutOfRange`] for more than
+    /// [`SCAN_MAX_POINTS`] points (or none).
+    pub(crate) fn new(points: &[f32], dims: ProjectionDims) -> Result<Self> {
+        let k = dims.get();
+        let len = points.len() / k;
+        check_len(len)?;
         let blocks = len.div_ceil(BLOCK);
-        let mut coords = vec![FAR; blocks * dims * BLOCK];
-        for (i, p) in points.chunks_exact(dims).enumerate() {
+        let mut coords = vec![FAR; blocks * k * BLOCK];
+        for (i, p) in points.chunks_exact(k).enumerate() {
             let (b, l) = (i / BLOCK, i % BLOCK);
-            for (k, v) in p.iter().enumerate() {
-                coords[(b * dims + k) * BLOCK + l] = *v;
+            for (c, v) in p.iter().enumerate() {
+                coords[(b * k + c) * BLOCK + l] = *v;
             }
         }
-        Self { dims, len, coords }
+        Ok(Self { dims, len, coords })
     }
 
     /// The nearest point to `query` (its first `K` values) in the
@@ -80,9 +98,9 @@ impl ProjectedScan {
     ) -> (usize, f32, &'s [[f32; BLOCK]]) {
         // one build per width: the query's coordinates stay in registers
         let ((first, least), blocks) = match self.dims {
-            8 => nearest_k::<8>(kernel, &self.coords, query, scratch),
-            12 => nearest_k::<12>(kernel, &self.coords, query, scratch),
-            _ => nearest_k::<16>(kernel, &self.coords, query, scratch),
+            ProjectionDims::K8 => nearest_k::<8>(kernel, &self.coords, query, scratch),
+            ProjectionDims::K12 => nearest_k::<12>(kernel, &self.coords, query, scratch),
+            ProjectionDims::K16 => nearest_k::<16>(kernel, &self.coords, query, scratch),
         };
         // SAFETY: `nearest` wrote the first `blocks` entries of `scratch`
         // (`MaybeUninit<T>` has `T`'s layout).
@@ -210,4 +228,76 @@ fn nearest_avx512<const K: usize>(
     scratch: &mut Scratch,
 ) -> ((usize, f32), usize) {
     nearest(coords, q, scratch)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every build the CPU runs (and the portable one) finds the same
+    /// nearest point and keeps the same distances, for every width and for
+    /// sizes around the blocks.
+    #[test]
+    fn every_build_scans_alike() {
+        let mut kernels = vec![Kernel::Portable];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                kernels.push(Kernel::Avx2);
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                kernels.push(Kernel::Avx512);
+            }
+        }
+        // a fixed, uneven sequence of values, with ties
+        let value = |i: usize| ((i * 7919) % 61) as f32 * 0.25 - 7.0;
+        for dims in ProjectionDims::ALL {
+            let k = dims.get();
+            for len in [1, 15, 16, 17, 200] {
+                let points: Vec<f32> = (0..len * k).map(value).collect();
+                let scan = ProjectedScan::new(&points, dims).unwrap();
+                let mut query = [0.0_f32; MAX_DIMS];
+                for (c, q) in query.iter_mut().take(k).enumerate() {
+                    *q = value(c * 13 + 5);
+                }
+                let mut answers = Vec::new();
+                for &kernel in &kernels {
+                    let mut scratch = scratch();
+                    let (first, least, blocks) = scan.nearest(kernel, &query, &mut scratch);
+                    let kept: Vec<f32> = blocks.iter().flatten().copied().collect();
+                    // the reference: each point's sum of squares in order
+                    let reference: Vec<f32> = points
+                        .chunks_exact(k)
+                        .map(|p| {
+                            p.iter().zip(&query).fold(0.0_f32, |acc, (x, q)| {
+                                let d = x - q;
+                                acc + d * d
+                            })
+                        })
+                        .collect();
+                    assert_eq!(&kept[..len], &reference[..], "{kernel:?}");
+                    let best = reference.iter().copied().fold(f32::INFINITY, f32::min);
+                    let lowest = reference.iter().position(|&v| v == best).unwrap();
+                    assert_eq!((first, least), (lowest, best), "{kernel:?}");
+                    let mut visited = Vec::new();
+                    within(blocks, len, best, |i, p| {
+                        visited.push((i, p));
+                        best
+                    });
+                    let expect: Vec<(usize, f32)> = reference
+                        .iter()
+                        .copied()
+                        .enumerate()
+                        .filter(|&(_, p)| p <= best)
+                        .collect();
+                    assert_eq!(visited, expect, "{kernel:?}");
+                    answers.push((first, least));
+                }
+                assert!(answers.windows(2).all(|w| w[0] == w[1]));
+            }
+        }
+        // more points than the stack holds are refused
+        let many = vec![0.0_f32; (SCAN_MAX_POINTS + 1) * 8];
+        assert!(ProjectedScan::new(&many, ProjectionDims::K8).is_err());
+    }
 }
