@@ -103,7 +103,7 @@ smoke: training-venv py-module
 
 # the shipped models: trains KBJAE and the SCNN on freshly generated data and
 # writes assets/models/{kbjae,scnn}.onnx with their model cards (on two
-# cores about 10 and 25 minutes; a GPU is used where torch finds one)
+# cores about 6 and 25 minutes; a GPU is used where torch finds one)
 train: training-venv py-module
 	$(TVPY) training/train_kbjae.py
 	$(TVPY) training/train_scnn.py
