@@ -421,11 +421,11 @@ simd_kernels!(
 );
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// Every build of the kernels this CPU runs, the portable one first.
-    fn every_kernel() -> Vec<Kernel> {
+    pub(crate) fn every_kernel() -> Vec<Kernel> {
         let mut kernels = vec![Kernel::Portable];
         #[cfg(target_arch = "x86_64")]
         {

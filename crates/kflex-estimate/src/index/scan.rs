@@ -239,16 +239,7 @@ mod tests {
     /// sizes around the blocks.
     #[test]
     fn every_build_scans_alike() {
-        let mut kernels = vec![Kernel::Portable];
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                kernels.push(Kernel::Avx2);
-            }
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                kernels.push(Kernel::Avx512);
-            }
-        }
+        let kernels = super::super::kernel::tests::every_kernel();
         // a fixed, uneven sequence of values, with ties
         let value = |i: usize| ((i * 7919) % 61) as f32 * 0.25 - 7.0;
         for dims in ProjectionDims::ALL {
