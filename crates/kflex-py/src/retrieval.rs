@@ -350,11 +350,16 @@ pub(crate) fn build_band_database_py(
     Ok(PyFeatureIndex { inner: db.index })
 }
 
-/// Band databases from indexes (copies: an index stays usable in Python).
+/// Band databases from indexes (copies that search as the originals do: an
+/// index stays usable in Python).
 fn band_databases(databases: &[&FeatureIndex]) -> kflex_estimate::Result<Vec<BandDatabase>> {
     databases
         .iter()
-        .map(|d| BandDatabase::from_index(FeatureIndex::from_bytes(&d.to_bytes())?))
+        .map(|d| {
+            let mut copy = FeatureIndex::from_bytes(&d.to_bytes())?;
+            copy.set_search(d.search_method())?;
+            BandDatabase::from_index(copy)
+        })
         .collect()
 }
 
