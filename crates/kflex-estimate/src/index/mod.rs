@@ -417,13 +417,7 @@ impl FeatureIndex {
             }
         };
         let kernel = Kernel::detect();
-        let mut projected = vec![0.0_f32; n * dims];
-        for (x, p) in features
-            .chunks_exact(dim)
-            .zip(projected.chunks_exact_mut(dims))
-        {
-            kernel.project(&axes, &mean, x, p);
-        }
+        let projected = project_rows(kernel, &axes, &mean, &features, dim, dims);
         let tree = ProjectedTree::new(&projected, projection)?;
         let search = search.resolve(n)?;
         let scan = match search {
@@ -489,15 +483,14 @@ impl FeatureIndex {
         let search = search.resolve(self.len())?;
         self.scan = match search {
             Search::Scan => {
-                let dims = self.projection.get();
-                let mut projected = vec![0.0_f32; self.len() * dims];
-                for (x, p) in self
-                    .features
-                    .chunks_exact(self.dim)
-                    .zip(projected.chunks_exact_mut(dims))
-                {
-                    self.kernel.project(&self.axes, &self.mean, x, p);
-                }
+                let projected = project_rows(
+                    self.kernel,
+                    &self.axes,
+                    &self.mean,
+                    &self.features,
+                    self.dim,
+                    self.projection.get(),
+                );
                 Some(ProjectedScan::new(&projected, self.projection)?)
             }
             _ => None,
@@ -623,31 +616,27 @@ impl FeatureIndex {
             (t * t * (1.0 + 1e-4) + 1e-30) as f32
         };
 
-        let bound_sq = radius_sq(best.0);
         // every point within the bound of the best so far, the bound
-        // shrinking as the best improves
-        let mut visit = |i: usize, p: f32, bound_sq: f32| {
+        // shrinking as the best improves; `visit` returns the bound
+        let start = radius_sq(best.0);
+        let mut bound_sq = start;
+        let mut visit = |i: usize, p: f32| {
             stats.candidates += 1;
             if p <= bound_sq && i != first {
                 let f = full(i);
                 stats.full_distances += 1;
                 if f < best.0 || (f == best.0 && i < best.1) {
                     best = (f, i);
+                    bound_sq = radius_sq(f);
                 }
             }
-            radius_sq(best.0)
+            bound_sq
         };
         match kept {
-            Some((scan, blocks)) => {
-                // `within` hands on only points inside the bound
-                scan::within(blocks, scan.len(), bound_sq, |i, p| visit(i, p, p));
-            }
-            None => {
-                let mut bound_sq = bound_sq;
-                self.tree.within(&projected, bound_sq, |i, p| {
-                    bound_sq = visit(i, p, bound_sq);
-                });
-            }
+            Some((scan, blocks)) => scan::within(blocks, scan.len(), start, visit),
+            None => self.tree.within(&projected, start, |i, p| {
+                visit(i, p);
+            }),
         }
         (self.neighbour(best.1, best.0), stats)
     }
@@ -697,6 +686,26 @@ impl FeatureIndex {
         self.nearest_batch_into(queries, &mut out)?;
         Ok(out)
     }
+}
+
+/// Every row of `features` (`dim` wide) projected on the `dims` rows of
+/// `axes` around `mean`: the points the tree and the scan hold.
+fn project_rows(
+    kernel: Kernel,
+    axes: &[f32],
+    mean: &[f32],
+    features: &[f32],
+    dim: usize,
+    dims: usize,
+) -> Vec<f32> {
+    let mut projected = vec![0.0_f32; features.len() / dim * dims];
+    for (x, p) in features
+        .chunks_exact(dim)
+        .zip(projected.chunks_exact_mut(dims))
+    {
+        kernel.project(axes, mean, x, p);
+    }
+    projected
 }
 
 /// Absolute slack for underflow in the pruning threshold: squares and
